@@ -1,0 +1,3 @@
+"""Vigil: tell me, and show me, when something moves."""
+
+__version__ = "0.1.0"

@@ -1,0 +1,81 @@
+"""Writers for the files `vigil analyze` leaves in its output folder."""
+
+from __future__ import annotations
+
+import csv
+import json
+import os
+import tempfile
+from pathlib import Path
+from typing import IO, Any
+
+import cv2
+
+from app.vision.detections import Detection
+from app.vision.types import Image
+
+TRACKS_HEADER = (
+    "frame", "time_s", "track_id", "x", "y", "w", "h", "cx", "cy", "area",
+    "distance_px", "speed_px_s",
+)
+
+
+class TracksCsv:
+    """tracks.csv: one row per detected object per frame."""
+
+    def __init__(self, path: Path) -> None:
+        self._file: IO[str] = path.open("w", newline="")
+        self._writer = csv.writer(self._file)
+        self._writer.writerow(TRACKS_HEADER)
+
+    def write(self, frame: int, time_s: float, detections: list[Detection]) -> None:
+        for d in detections:
+            self._writer.writerow((
+                frame, f"{time_s:.4f}", d.track_id, d.box.x, d.box.y, d.box.w, d.box.h,
+                f"{d.centroid[0]:.2f}", f"{d.centroid[1]:.2f}", f"{d.area:.1f}",
+                f"{d.distance_px:.3f}", f"{d.speed_px_s:.3f}",
+            ))
+
+    def close(self) -> None:
+        self._file.close()
+
+
+class AnnotatedVideo:
+    """annotated.avi, Motion-JPEG: every OpenCV build writes it and every player reads it."""
+
+    def __init__(self, path: Path, fps: float, size: tuple[int, int]) -> None:
+        fourcc = cv2.VideoWriter.fourcc(*"MJPG")
+        self._writer = cv2.VideoWriter(str(path), fourcc, fps, size)
+        if not self._writer.isOpened():
+            raise OSError(f"cannot write video {path}")
+
+    def write(self, frame: Image) -> None:
+        self._writer.write(frame)
+
+    def close(self) -> None:
+        self._writer.release()
+
+
+def write_json(path: Path, data: Any) -> None:
+    """Write JSON atomically: a reader never sees half a file."""
+    write_bytes_atomic(path, json.dumps(data, indent=2, allow_nan=False).encode())
+
+
+def write_bytes_atomic(path: Path, data: bytes) -> None:
+    fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=f".{path.name}.")
+    try:
+        with os.fdopen(fd, "wb") as handle:
+            handle.write(data)
+        Path(tmp).replace(path)
+    except BaseException:
+        Path(tmp).unlink(missing_ok=True)
+        raise
+
+
+def write_image(path: Path, image: Image, quality: int = 90) -> None:
+    suffix = path.suffix.lower()
+    params = [cv2.IMWRITE_JPEG_QUALITY, quality] if suffix in (".jpg", ".jpeg") else []
+    ok, encoded = cv2.imencode(suffix, image, params)
+    if not ok:
+        raise OSError(f"cannot encode {path.name}")
+    write_bytes_atomic(path, encoded.tobytes())

@@ -1,0 +1,310 @@
+"""Offline mode: analyse a recorded video frame by frame (`vigil analyze`)."""
+
+from __future__ import annotations
+
+import statistics
+import time
+from collections.abc import Callable
+from dataclasses import asdict, dataclass, field
+from pathlib import Path
+from typing import Any
+
+import cv2
+
+import app
+from app.analysis.outputs import AnnotatedVideo, TracksCsv, write_image, write_json
+from app.analysis.report_html import write_report_html
+from app.analysis.truth import Truth, load_truth
+from app.events.alarm import AlarmLogic, MotionEvent
+from app.sources.files import VideoInput, open_input
+from app.vision.annotate import Annotator
+from app.vision.calibration import GroundPlane
+from app.vision.detections import Detection
+from app.vision.metrics import ObjectCounts, PixelCounts
+from app.vision.pipeline import FrameResult, Pipeline, PipelineConfig
+from app.vision.types import Image, Mask
+
+WARM_UP_FRAMES = 20
+"""Frames a background model gets to learn before scores 'after warm-up' count."""
+
+Progress = Callable[[int, int | None], None]
+"""Called with (frames done, frames expected or None) as the analysis goes."""
+
+
+@dataclass(frozen=True)
+class AnalysisOptions:
+    pipeline: PipelineConfig = field(default_factory=PipelineConfig)
+    masks: bool = False
+    truth: Path | None = None
+    calibration: GroundPlane | None = None
+    fps: float | None = None
+    """Frame rate of a folder of frames (a video's own rate is read from it)."""
+    quiet_s: float = 1.0
+    """Seconds without motion that end an event."""
+
+
+@dataclass
+class _TrackSummary:
+    track_id: int
+    first_frame: int
+    last_frame: int
+    first_time_s: float
+    last_time_s: float
+    distance_px: float = 0.0
+    speeds: list[float] = field(default_factory=list)
+    distance_m: float = 0.0
+    speeds_m_s: list[float] = field(default_factory=list)
+    last_ground: tuple[float, float] | None = None
+    ranges_m: list[float] = field(default_factory=list)
+    path: list[tuple[float, float]] = field(default_factory=list)
+
+    def add(self, frame: int, time_s: float, d: Detection) -> None:
+        self.last_frame, self.last_time_s = frame, time_s
+        self.distance_px += d.distance_px
+        self.speeds.append(d.speed_px_s)
+        self.path.append(d.centroid)
+        if d.ground_xy_m is not None:
+            if self.last_ground is not None:
+                self.distance_m += float(
+                    ((d.ground_xy_m[0] - self.last_ground[0]) ** 2
+                     + (d.ground_xy_m[1] - self.last_ground[1]) ** 2) ** 0.5)
+            self.last_ground = d.ground_xy_m
+            if d.speed_m_s is not None:
+                self.speeds_m_s.append(d.speed_m_s)
+            if d.range_m is not None:
+                self.ranges_m.append(d.range_m)
+
+    def as_dict(self) -> dict[str, Any]:
+        moving = self.speeds[1:] or self.speeds
+        out: dict[str, Any] = {
+            "track_id": self.track_id,
+            "first_frame": self.first_frame,
+            "last_frame": self.last_frame,
+            "frames": len(self.speeds),
+            "duration_s": round(self.last_time_s - self.first_time_s, 4),
+            "distance_px": round(self.distance_px, 2),
+            "mean_speed_px_s": round(statistics.fmean(moving), 3),
+            "max_speed_px_s": round(max(moving), 3),
+        }
+        if self.speeds_m_s:
+            mean_m_s = statistics.fmean(self.speeds_m_s[1:] or self.speeds_m_s)
+            out.update({
+                "distance_m": round(self.distance_m, 3),
+                "mean_speed_m_s": round(mean_m_s, 3),
+                "mean_speed_km_h": round(mean_m_s * 3.6, 2),
+                "first_range_m": round(self.ranges_m[0], 2),
+                "last_range_m": round(self.ranges_m[-1], 2),
+            })
+        return out
+
+
+class _Scoring:
+    """DR/FAR per object per frame, and CDnet pixel metrics when truth is masks."""
+
+    def __init__(self, truth: Truth, size: tuple[int, int], min_area: float) -> None:
+        self.truth = truth
+        self.size = size
+        self.min_area = min_area
+        self.objects, self.objects_warm = ObjectCounts(), ObjectCounts()
+        self.pixels, self.pixels_warm = PixelCounts(), PixelCounts()
+        self.frames_scored = 0
+        roi = truth.roi
+        if roi is not None and (roi.shape[1], roi.shape[0]) != size:
+            roi = cv2.resize(roi, size, interpolation=cv2.INTER_NEAREST)
+        self.roi = roi
+
+    def add(self, index: int, detections: list[Detection], mask: Mask) -> None:
+        if index not in self.truth.mask_paths and index not in self.truth.boxes:
+            return
+        self.frames_scored += 1
+        warm = index >= WARM_UP_FRAMES
+        true_boxes = self.truth.boxes_at(index, self.min_area)
+        found = [d.box for d in detections]
+        self.objects.add(true_boxes, found)
+        if warm:
+            self.objects_warm.add(true_boxes, found)
+        label = self.truth.mask(index)
+        if label is not None:
+            if (label.shape[1], label.shape[0]) != (mask.shape[1], mask.shape[0]):
+                mask = cv2.resize(mask, (label.shape[1], label.shape[0]),
+                                  interpolation=cv2.INTER_NEAREST)
+            roi = self.roi
+            if roi is not None and roi.shape != label.shape:
+                roi = cv2.resize(roi, (label.shape[1], label.shape[0]),
+                                 interpolation=cv2.INTER_NEAREST)
+            self.pixels.add(mask, label, roi)
+            if warm:
+                self.pixels_warm.add(mask, label, roi)
+
+    def as_dict(self) -> dict[str, Any]:
+        out: dict[str, Any] = {
+            "source": self.truth.source,
+            "kind": self.truth.kind,
+            "frames_scored": self.frames_scored,
+            "warm_up_frames": WARM_UP_FRAMES,
+            "objects": self.objects.as_dict(),
+            "objects_after_warm_up": self.objects_warm.as_dict(),
+        }
+        if self.truth.kind == "masks":
+            out["pixels"] = self.pixels.as_dict()
+            out["pixels_after_warm_up"] = self.pixels_warm.as_dict()
+        return out
+
+
+def analyze(input_path: Path, out_dir: Path, options: AnalysisOptions | None = None,
+            progress: Progress | None = None) -> dict[str, Any]:
+    """Analyse ``input_path`` into ``out_dir``; returns the report (also report.json).
+
+    Raises InputError or TruthError (both ValueError) with a one-line reason
+    when the input or the truth cannot be used.
+    """
+    options = options or AnalysisOptions()
+    source = open_input(input_path, options.fps)
+    truth = load_truth(options.truth, source.frame_numbers) if options.truth else None
+    out_dir.mkdir(parents=True, exist_ok=True)
+    (out_dir / "snapshots").mkdir(exist_ok=True)
+    (out_dir / "differences").mkdir(exist_ok=True)
+    if options.masks:
+        (out_dir / "masks").mkdir(exist_ok=True)
+    return _Analysis(source, out_dir, options, truth, progress).run()
+
+
+class _Analysis:
+    def __init__(self, source: VideoInput, out_dir: Path, options: AnalysisOptions,
+                 truth: Truth | None, progress: Progress | None) -> None:
+        self.source = source
+        self.out = out_dir
+        self.options = options
+        self.progress = progress
+        self.pipeline = Pipeline(options.pipeline, source.fps, options.calibration)
+        self.annotator = Annotator()
+        self.alarms = AlarmLogic(options.quiet_s)
+        self.events: list[dict[str, Any]] = []
+        self.tracks: dict[int, _TrackSummary] = {}
+        self.frame_stats: list[dict[str, Any]] = []
+        self.scoring = _Scoring(truth, source.size, options.pipeline.min_area) if truth else None
+        self.first_frame: Image | None = None
+        self.key_frames: list[dict[str, Any]] = []
+
+    def run(self) -> dict[str, Any]:
+        started = time.perf_counter()
+        tracks_csv = TracksCsv(self.out / "tracks.csv")
+        video = AnnotatedVideo(self.out / "annotated.avi", self.source.fps, self.source.size)
+        frames = 0
+        try:
+            for frame in self.source.frames():
+                if self.first_frame is None:
+                    self.first_frame = frame
+                result = self.pipeline.process(frame)
+                annotated = self.annotator(frame, result.detections, self.pipeline.tracker.trails())
+                video.write(annotated)
+                tracks_csv.write(result.index, result.time_s, result.detections)
+                self._record(result, annotated)
+                frames += 1
+                if self.progress:
+                    self.progress(frames, self.source.header_frames)
+        finally:
+            tracks_csv.close()
+            video.close()
+        last = self.alarms.finish()
+        if last is not None:
+            self._close_event(last)
+        elapsed = time.perf_counter() - started
+        report = self._report(frames, elapsed)
+        write_json(self.out / "events.json", {"events": self.events})
+        write_json(self.out / "report.json", report)
+        write_report_html(self.out / "report.html", report, self._html_extras())
+        return report
+
+    def _record(self, result: FrameResult, annotated: Image) -> None:
+        index, time_s = result.index, result.time_s
+        mask_full = self._full_size(result.mask)
+        if self.options.masks:
+            write_image(self.out / "masks" / f"{index:06d}.png", mask_full)
+        if self.scoring is not None:
+            self.scoring.add(index, result.detections, mask_full)
+        motion_area = sum(d.area for d in result.detections)
+        self.frame_stats.append({
+            "frame": index, "time_s": round(time_s, 4),
+            "grey_mean": round(result.stats.mean, 3), "grey_std": round(result.stats.std, 3),
+            "objects": len(result.detections), "motion_area": round(motion_area, 1),
+            "threshold": round(result.threshold, 2), "global_change": result.global_change,
+        })
+        for d in result.detections:
+            assert d.track_id is not None
+            summary = self.tracks.get(d.track_id)
+            if summary is None:
+                summary = self.tracks[d.track_id] = _TrackSummary(
+                    d.track_id, index, index, time_s, time_s)
+            summary.add(index, time_s, d)
+        update = self.alarms.update(index, time_s, result.detections)
+        if update.started is not None:
+            self._snapshot(update.started, annotated, result)
+        if update.ended is not None:
+            self._close_event(update.ended)
+
+    def _full_size(self, mask: Mask) -> Mask:
+        width, height = self.source.size
+        if (mask.shape[1], mask.shape[0]) == (width, height):
+            return mask
+        return cv2.resize(mask, (width, height), interpolation=cv2.INTER_NEAREST)
+
+    def _snapshot(self, event: MotionEvent, annotated: Image, result: FrameResult) -> None:
+        name = f"event-{event.id:04d}.jpg"
+        write_image(self.out / "snapshots" / name, annotated)
+        difference = cv2.normalize(self._full_size(result.difference), None, 0, 255, cv2.NORM_MINMAX)
+        write_image(self.out / "differences" / name, difference)
+        self.key_frames.append({"event": event.id, "frame": result.index,
+                                "snapshot": f"snapshots/{name}"})
+
+    def _close_event(self, event: MotionEvent) -> None:
+        record = event.as_dict()
+        record["snapshot"] = f"snapshots/event-{event.id:04d}.jpg"
+        record["difference"] = f"differences/event-{event.id:04d}.jpg"
+        self.events.append(record)
+
+    def _report(self, frames: int, elapsed: float) -> dict[str, Any]:
+        config = self.options.pipeline
+        timings = {
+            stage: round(1000 * statistics.median(samples), 4)
+            for stage, samples in self.pipeline.timings.items() if samples
+        }
+        report: dict[str, Any] = {
+            "vigil_version": app.__version__,
+            "input": str(self.source.path),
+            "frames": frames,
+            "header_frames": self.source.header_frames,
+            "fps": self.source.fps,
+            "size": list(self.source.size),
+            "duration_s": round(frames / self.source.fps, 4),
+            "method": config.method,
+            "settings": _settings(config, self.pipeline, self.options),
+            "tracks": [t.as_dict() for t in sorted(self.tracks.values(), key=lambda t: t.track_id)],
+            "events": len(self.events),
+            "frame_stats": self.frame_stats,
+            "timings": {
+                "total_s": round(elapsed, 3),
+                "frames_per_s": round(frames / elapsed, 2) if elapsed > 0 else None,
+                "median_stage_ms": timings,
+            },
+        }
+        if self.scoring is not None:
+            report["evaluation"] = self.scoring.as_dict()
+        return report
+
+    def _html_extras(self) -> dict[str, Any]:
+        return {
+            "first_frame": self.first_frame,
+            "paths": {tid: t.path for tid, t in self.tracks.items()},
+            "out_dir": self.out,
+            "key_frames": self.key_frames,
+        }
+
+
+def _settings(config: PipelineConfig, pipeline: Pipeline, options: AnalysisOptions) -> dict[str, Any]:
+    settings = asdict(config)
+    settings["sensitivity_mode"] = "manual" if config.sensitivity is not None else "automatic"
+    settings["threshold_in_force"] = round(pipeline.method.threshold, 2)
+    settings["calibrated"] = options.calibration is not None
+    settings["quiet_s"] = options.quiet_s
+    return settings

@@ -1,0 +1,109 @@
+"""Frames from a recorded video file or a folder of images (offline mode).
+
+The header's frame count is never trusted (some AVIs claim 444 frames and
+hold 68): frames are decoded until the reader stops.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Iterator
+from dataclasses import dataclass
+from pathlib import Path
+
+import cv2
+
+from app.analysis.truth import frame_number
+from app.vision.types import Image
+
+IMAGE_SUFFIXES = (".jpg", ".jpeg", ".png", ".bmp", ".tif", ".tiff", ".pgm", ".ppm", ".webp")
+DEFAULT_FOLDER_FPS = 25.0
+
+
+class InputError(ValueError):
+    """The input cannot be analysed; the message is one readable line."""
+
+
+@dataclass
+class VideoInput:
+    """An opened input: its frames (decoded lazily), rate, size and frame names."""
+
+    path: Path
+    fps: float
+    size: tuple[int, int]
+    images: list[Path] | None = None
+    """Sorted frame files, for a folder input."""
+    header_frames: int | None = None
+    """What the container claims; informational only."""
+
+    @property
+    def frame_numbers(self) -> list[int | None] | None:
+        """Numbers in the frame files' names (CDnet in000950.jpg -> 950), for truth matching."""
+        return [frame_number(p) for p in self.images] if self.images is not None else None
+
+    def frames(self) -> Iterator[Image]:
+        if self.images is not None:
+            for image_path in self.images:
+                frame = cv2.imread(str(image_path), cv2.IMREAD_COLOR)
+                if frame is None:
+                    raise InputError(f"cannot decode image {image_path.name}")
+                if (frame.shape[1], frame.shape[0]) != self.size:
+                    raise InputError(
+                        f"{image_path.name} is {frame.shape[1]}x{frame.shape[0]}, "
+                        f"the first frame was {self.size[0]}x{self.size[1]}"
+                    )
+                yield frame
+            return
+        capture = cv2.VideoCapture(str(self.path), cv2.CAP_FFMPEG)
+        try:
+            while True:
+                ok, frame = capture.read()
+                if not ok or frame is None:
+                    return
+                yield frame
+        finally:
+            capture.release()
+
+
+def open_input(path: Path, fps: float | None = None) -> VideoInput:
+    """Open a video file or a folder of frames, or raise InputError with the reason."""
+    if not path.exists():
+        raise InputError(f"input not found: {path}")
+    if path.is_dir():
+        return _open_folder(path, fps)
+    if not path.is_file():
+        raise InputError(f"input is not a file or folder: {path}")
+    try:
+        with path.open("rb") as handle:
+            if not handle.read(1):
+                raise InputError(f"input is empty: {path}")
+    except PermissionError:
+        raise InputError(f"input is not readable: {path}") from None
+    capture = cv2.VideoCapture(str(path), cv2.CAP_FFMPEG)
+    try:
+        if not capture.isOpened():
+            raise InputError(f"not a video FFmpeg can decode: {path}")
+        ok, first = capture.read()
+        if not ok or first is None:
+            raise InputError(f"video has no decodable frames: {path}")
+        rate = fps or capture.get(cv2.CAP_PROP_FPS)
+        claimed = int(capture.get(cv2.CAP_PROP_FRAME_COUNT))
+    finally:
+        capture.release()
+    if not rate or rate != rate or rate <= 0 or rate > 1000:
+        rate = DEFAULT_FOLDER_FPS
+    return VideoInput(path, float(rate), (first.shape[1], first.shape[0]),
+                      header_frames=claimed if claimed > 0 else None)
+
+
+def _open_folder(folder: Path, fps: float | None) -> VideoInput:
+    try:
+        images = sorted(p for p in folder.iterdir() if p.suffix.lower() in IMAGE_SUFFIXES)
+    except PermissionError:
+        raise InputError(f"folder is not readable: {folder}") from None
+    if not images:
+        raise InputError(f"no image frames in folder: {folder}")
+    first = cv2.imread(str(images[0]), cv2.IMREAD_COLOR)
+    if first is None:
+        raise InputError(f"cannot decode image {images[0].name} in {folder}")
+    return VideoInput(folder, float(fps or DEFAULT_FOLDER_FPS), (first.shape[1], first.shape[0]),
+                      images=images)

@@ -1,0 +1,68 @@
+"""Draw what was found: red boxes, track ids, trails and speed labels."""
+
+from __future__ import annotations
+
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass
+
+import cv2
+import numpy as np
+
+from app.vision.detections import Detection
+from app.vision.types import Image, Mask
+
+RED = (0, 0, 255)
+WHITE = (255, 255, 255)
+TRAIL = (0, 200, 255)
+
+
+@dataclass(frozen=True)
+class Annotator:
+    thickness: int = 2
+    show_speed: bool = True
+
+    def __call__(
+        self,
+        frame: Image,
+        detections: Sequence[Detection],
+        trails: Mapping[int, Sequence[tuple[float, float]]] | None = None,
+    ) -> Image:
+        """A copy of the frame with every detection drawn on it."""
+        canvas = frame.copy() if frame.ndim == 3 else cv2.cvtColor(frame, cv2.COLOR_GRAY2BGR)
+        font_scale = max(0.35, min(canvas.shape[1] / 1280.0, 1.0))
+        for points in (trails or {}).values():
+            if len(points) >= 2:
+                polyline = np.round(np.asarray(points)).astype(np.int32).reshape(-1, 1, 2)
+                cv2.polylines(canvas, [polyline], False, TRAIL, 1, cv2.LINE_AA)
+        for det in detections:
+            b = det.box
+            cv2.rectangle(canvas, (b.x, b.y), (b.x + b.w - 1, b.y + b.h - 1), RED, self.thickness)
+            label = self._label(det)
+            if label:
+                (tw, th), base = cv2.getTextSize(label, cv2.FONT_HERSHEY_SIMPLEX, font_scale, 1)
+                top = max(0, b.y - th - base - 2)
+                cv2.rectangle(canvas, (b.x, top), (b.x + tw + 4, top + th + base + 2), RED, -1)
+                cv2.putText(canvas, label, (b.x + 2, top + th + 1), cv2.FONT_HERSHEY_SIMPLEX,
+                            font_scale, WHITE, 1, cv2.LINE_AA)
+        return canvas
+
+    def _label(self, det: Detection) -> str:
+        parts = [] if det.track_id is None else [f"#{det.track_id}"]
+        if self.show_speed and det.track_id is not None:
+            if det.speed_m_s is not None:
+                parts.append(f"{det.speed_m_s * 3.6:.1f} km/h")
+            else:
+                parts.append(f"{det.speed_px_s:.0f} px/s")
+        return " ".join(parts)
+
+
+def overlay_mask(frame: Image, mask: Mask, color: tuple[int, int, int] = RED) -> Image:
+    """The binary motion mask tinted over the picture (the "how sensitive" view)."""
+    canvas = frame.copy() if frame.ndim == 3 else cv2.cvtColor(frame, cv2.COLOR_GRAY2BGR)
+    if mask.shape[:2] != canvas.shape[:2]:
+        mask = cv2.resize(mask, (canvas.shape[1], canvas.shape[0]), interpolation=cv2.INTER_NEAREST)
+    tint = np.zeros_like(canvas)
+    tint[:] = color
+    blended = cv2.addWeighted(canvas, 0.5, tint, 0.5, 0)
+    np.copyto(canvas, blended, where=(mask > 0)[..., None])
+    return canvas

@@ -1,0 +1,66 @@
+"""The one value that flows from detector to tracker, annotator, events and storage."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, replace
+
+
+@dataclass(frozen=True, slots=True)
+class Box:
+    """An axis-aligned rectangle in pixels of the input frame."""
+
+    x: int
+    y: int
+    w: int
+    h: int
+
+    @property
+    def area(self) -> int:
+        return self.w * self.h
+
+    @property
+    def center(self) -> tuple[float, float]:
+        return (self.x + self.w / 2.0, self.y + self.h / 2.0)
+
+    @property
+    def bottom_center(self) -> tuple[float, float]:
+        """Where an upright object touches the ground: what calibration maps."""
+        return (self.x + self.w / 2.0, float(self.y + self.h))
+
+    def iou(self, other: Box) -> float:
+        ix = max(0, min(self.x + self.w, other.x + other.w) - max(self.x, other.x))
+        iy = max(0, min(self.y + self.h, other.y + other.h) - max(self.y, other.y))
+        inter = ix * iy
+        union = self.area + other.area - inter
+        return inter / union if union > 0 else 0.0
+
+    def as_list(self) -> list[int]:
+        return [self.x, self.y, self.w, self.h]
+
+
+@dataclass(frozen=True, slots=True)
+class Detection:
+    """A moving object in one frame.
+
+    The detector fills box, centroid and area; the tracker adds the track id,
+    the distance moved since the object's previous sighting and its smoothed
+    speed; calibration adds ground-plane values when the camera is calibrated.
+    """
+
+    box: Box
+    centroid: tuple[float, float]
+    area: float
+    track_id: int | None = None
+    distance_px: float = 0.0
+    speed_px_s: float = 0.0
+    ground_xy_m: tuple[float, float] | None = None
+    range_m: float | None = None
+    speed_m_s: float | None = None
+
+    def with_track(self, track_id: int, distance_px: float, speed_px_s: float) -> Detection:
+        return replace(self, track_id=track_id, distance_px=distance_px, speed_px_s=speed_px_s)
+
+    def with_ground(
+        self, ground_xy_m: tuple[float, float], range_m: float, speed_m_s: float | None
+    ) -> Detection:
+        return replace(self, ground_xy_m=ground_xy_m, range_m=range_m, speed_m_s=speed_m_s)

@@ -1,0 +1,78 @@
+"""The one small interface every segmentation method implements."""
+
+from __future__ import annotations
+
+from abc import ABC, abstractmethod
+from dataclasses import dataclass
+from typing import ClassVar
+
+import cv2
+
+from app.vision.noise import NoiseEstimator
+from app.vision.types import GrayImage, Mask
+
+
+@dataclass(frozen=True, slots=True)
+class MotionResult:
+    """What a method found in one frame.
+
+    ``mask`` is 255 where something moves; ``difference`` is the grey-level
+    change the method thresholded (the paper's difference image, for
+    snapshots and for tuning the sensitivity by eye); ``global_change`` is
+    True when the whole scene changed at once (a light switched) and the
+    method re-learned it instead of reporting motion.
+    """
+
+    mask: Mask
+    difference: GrayImage
+    threshold: float
+    global_change: bool = False
+
+
+class MotionMethod(ABC):
+    """Segmentation: grey frame in, motion mask out.
+
+    ``sensitivity`` is the grey-level threshold (1..255; lower is more
+    sensitive). ``None`` means automatic: the threshold follows the noise
+    measured in the method's own difference image.
+    """
+
+    name: ClassVar[str]
+    description: ClassVar[str]
+
+    def __init__(self, sensitivity: float | None = None) -> None:
+        self.noise = NoiseEstimator()
+        self.sensitivity = sensitivity
+
+    @property
+    def sensitivity(self) -> float | None:
+        return self._sensitivity
+
+    @sensitivity.setter
+    def sensitivity(self, value: float | None) -> None:
+        if value is not None and not 1 <= value <= 255:
+            raise ValueError(f"sensitivity must be between 1 and 255 grey levels, not {value}")
+        self._sensitivity = value
+        self._sensitivity_changed()
+
+    def _sensitivity_changed(self) -> None:
+        """Hook for methods whose model must hear of a new sensitivity at once."""
+
+    @property
+    def threshold(self) -> float:
+        """The grey-level threshold in force for the next frame."""
+        return self._sensitivity if self._sensitivity is not None else self.noise.threshold
+
+    @abstractmethod
+    def apply(self, gray: GrayImage) -> MotionResult:
+        """Segment one frame; frames must arrive in order and keep their size."""
+
+    def reset(self) -> None:
+        """Forget the scene (a new source, or a jump in the video)."""
+        self.noise.reset()
+
+
+def threshold_difference(difference: GrayImage, threshold: float) -> Mask:
+    """Binary image: 255 where the difference exceeds the threshold."""
+    _, mask = cv2.threshold(difference, threshold, 255, cv2.THRESH_BINARY)
+    return mask

@@ -1,0 +1,124 @@
+"""The paper's pipeline as named stages, each swappable and timed.
+
+    frame -> grayscale -> histogram statistics -> downscale -> noise removal
+          -> contrast enhancement -> segmentation (method + threshold)
+          -> morphology -> blobs (min area) -> tracking -> calibration
+"""
+
+from __future__ import annotations
+
+import time
+from collections import defaultdict, deque
+from dataclasses import dataclass, field
+
+from app.vision.blobs import BlobExtractor
+from app.vision.calibration import GroundPlane, GroundTracker
+from app.vision.detections import Detection
+from app.vision.histogram import GreyStats, grey_stats
+from app.vision.morphology import Morphology
+from app.vision.motion import DEFAULT_METHOD, MotionResult, create_method
+from app.vision.preprocess import DenoiseMethod, Denoise, Downscale, Enhance, EnhanceMethod, to_gray
+from app.vision.tracker import Tracker, TrackerConfig
+from app.vision.types import GrayImage, Image, Mask
+
+TIMING_SAMPLES = 5000
+"""Per-stage timings kept (the most recent), enough for stable medians."""
+
+
+@dataclass(frozen=True)
+class PipelineConfig:
+    method: str = DEFAULT_METHOD
+    sensitivity: float | None = None
+    """Grey-level threshold 1..255 (lower = more sensitive); None = automatic."""
+    min_area: float = 100.0
+    """Smallest object, in pixels of the input frame."""
+    denoise: DenoiseMethod = "gaussian"
+    denoise_kernel: int = 3
+    enhance: EnhanceMethod = "none"
+    detect_width: int = 320
+    """Detection runs on frames at most this wide (0 = full size); boxes are mapped back."""
+    open_kernel: int = 3
+    close_kernel: int = 5
+    tracker: TrackerConfig = field(default_factory=TrackerConfig)
+
+
+@dataclass(frozen=True, slots=True)
+class FrameResult:
+    index: int
+    time_s: float
+    detections: list[Detection]
+    """Tracked objects (confirmed tracks) in input-frame pixels."""
+    mask: Mask
+    """Cleaned motion mask at detection resolution."""
+    difference: GrayImage
+    gray: GrayImage
+    stats: GreyStats
+    threshold: float
+    global_change: bool
+    scale: float
+    """Input pixels per detection pixel."""
+
+
+class Pipeline:
+    """Runs one video's frames, in order, through every stage."""
+
+    def __init__(self, config: PipelineConfig | None = None, fps: float = 25.0,
+                 calibration: GroundPlane | None = None) -> None:
+        self.config = config or PipelineConfig()
+        self.fps = fps if fps > 0 else 25.0
+        self.downscale = Downscale(self.config.detect_width)
+        self.denoise = Denoise(self.config.denoise, self.config.denoise_kernel)
+        self.enhance = Enhance(self.config.enhance)
+        self.method = create_method(self.config.method, self.config.sensitivity)
+        self.morphology = Morphology(self.config.open_kernel, self.config.close_kernel)
+        self.blobs = BlobExtractor(self.config.min_area)
+        self.tracker = Tracker(self.config.tracker)
+        self.ground = GroundTracker(calibration) if calibration else None
+        self.timings: dict[str, deque[float]] = defaultdict(lambda: deque(maxlen=TIMING_SAMPLES))
+        self._index = 0
+
+    def set_sensitivity(self, sensitivity: float | None) -> None:
+        """Takes effect on the next frame."""
+        self.method.sensitivity = sensitivity
+
+    def set_min_area(self, min_area: float) -> None:
+        self.blobs = BlobExtractor(min_area)
+
+    def process(self, frame: Image, time_s: float | None = None) -> FrameResult:
+        index = self._index
+        self._index += 1
+        if time_s is None:
+            time_s = index / self.fps
+        clock = _StageClock(self.timings)
+        gray = clock("grayscale", to_gray, frame)
+        stats = clock("histogram", grey_stats, gray)
+        small = clock("downscale", self.downscale, gray)
+        scale = gray.shape[1] / small.shape[1]
+        small = clock("denoise", self.denoise, small)
+        small = clock("enhance", self.enhance, small)
+        motion: MotionResult = clock("segment", self.method.apply, small)
+        mask = clock("morphology", self.morphology, motion.mask)
+        blobs = clock("blobs", self.blobs, mask, scale)
+        detections = clock("track", self.tracker.update, blobs, time_s)
+        if self.ground is not None:
+            detections = clock("calibrate", self.ground.update, detections, time_s)
+        return FrameResult(index, time_s, detections, mask, motion.difference, gray, stats,
+                           motion.threshold, motion.global_change, scale)
+
+    def reset(self) -> None:
+        self.method.reset()
+        self.tracker.reset()
+        self._index = 0
+
+
+class _StageClock:
+    """Times each stage call into a shared per-stage list (seconds)."""
+
+    def __init__(self, timings: dict[str, deque[float]]) -> None:
+        self.timings = timings
+
+    def __call__(self, stage: str, fn, *args):  # type: ignore[no-untyped-def]
+        start = time.perf_counter()
+        result = fn(*args)
+        self.timings[stage].append(time.perf_counter() - start)
+        return result

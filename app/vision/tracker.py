@@ -1,0 +1,236 @@
+"""Tracking: persistent ids, per-frame distance and smoothed velocity.
+
+Each track predicts where its object will be (constant velocity), detections
+are assigned to predictions by minimum total distance (Hungarian algorithm),
+and a track survives a few frames without a detection so objects that cross
+or hide briefly keep their id. When two tracked objects merge into one blob
+(they cross), the blob is split back into one detection per track at the
+predicted positions, so neither object is lost for the frames of the
+crossing.
+"""
+
+from __future__ import annotations
+
+import math
+from collections import deque
+from dataclasses import dataclass, field, replace
+
+import numpy as np
+from scipy.optimize import linear_sum_assignment
+
+from app.vision.detections import Box, Detection
+from app.vision.kinematics import fit_velocity, speed
+
+Point = tuple[float, float]
+
+
+@dataclass
+class Track:
+    key: int
+    box: Box
+    track_id: int = 0
+    """The public id, given when the track is confirmed, so ids count up without gaps."""
+    hits: int = 1
+    missed: int = 0
+    total_distance_px: float = 0.0
+    times: deque[float] = field(default_factory=lambda: deque(maxlen=12))
+    centroids: deque[Point] = field(default_factory=lambda: deque(maxlen=12))
+    trail: deque[Point] = field(default_factory=lambda: deque(maxlen=64))
+    velocity: Point = (0.0, 0.0)
+
+    @property
+    def last_centroid(self) -> Point:
+        return self.centroids[-1]
+
+    def predict(self, time_s: float) -> Point:
+        dt = time_s - self.times[-1]
+        x, y = self.last_centroid
+        return (x + self.velocity[0] * dt, y + self.velocity[1] * dt)
+
+
+@dataclass(frozen=True)
+class TrackerConfig:
+    max_missed: int = 8
+    """Frames a track coasts without a detection before it is dropped."""
+    min_hits: int = 2
+    """Sightings before a track is reported (drops one-frame flickers)."""
+    gate_px: float = 40.0
+    """Largest jump (beyond the object's own size) a detection may make to join a track."""
+    smoothing_window_s: float = 0.6
+    """Span of history the velocity fit looks at."""
+    max_objects: int = 64
+    """Largest blobs kept per frame: beyond this a frame is noise, and assignment cost grows fast."""
+
+
+class Tracker:
+    def __init__(self, config: TrackerConfig | None = None) -> None:
+        self.config = config or TrackerConfig()
+        self.tracks: dict[int, Track] = {}
+        self._next_key = 1
+        self._next_id = 1
+
+    def update(self, detections: list[Detection], time_s: float) -> list[Detection]:
+        """Assign ids; return the detections of confirmed tracks, with distance and speed."""
+        if len(detections) > self.config.max_objects:
+            detections = sorted(detections, key=lambda d: d.area, reverse=True)
+            detections = detections[: self.config.max_objects]
+        tracks = list(self.tracks.values())
+        predictions = [track.predict(time_s) for track in tracks]
+        merged, detections, tracks, predictions = self._split_merged(detections, tracks, predictions)
+        matches, unmatched = self._assign(detections, tracks, predictions)
+
+        reported: list[Detection] = []
+        matched = set()
+        for track, detection in merged + [(track, detections[i]) for i, track in matches]:
+            matched.add(track.key)
+            extended = self._extend(track, detection, time_s)
+            if extended is not None:
+                reported.append(extended)
+        for track in self.tracks.values():
+            if track.key not in matched:
+                track.missed += 1
+        for track in list(self.tracks.values()):
+            if track.missed > self.config.max_missed:
+                del self.tracks[track.key]
+        for det_index in unmatched:
+            track = self._start(detections[det_index], time_s)
+            if track.track_id:
+                reported.append(detections[det_index].with_track(track.track_id, 0.0, 0.0))
+        reported.sort(key=lambda d: d.track_id or 0)
+        return reported
+
+    def trails(self) -> dict[int, list[Point]]:
+        """Recent centroids of every live, confirmed track (for drawing)."""
+        return {track.track_id: list(track.trail) for track in self.tracks.values() if track.track_id}
+
+    def reset(self) -> None:
+        self.tracks.clear()
+        self._next_key = 1
+        self._next_id = 1
+
+    def _assign(
+        self, detections: list[Detection], tracks: list[Track], predictions: list[Point]
+    ) -> tuple[list[tuple[int, Track]], list[int]]:
+        if not detections:
+            return [], []
+        if not tracks:
+            return [], list(range(len(detections)))
+        det_xy = np.array([d.centroid for d in detections])
+        det_size = np.array([max(d.box.w, d.box.h) for d in detections], dtype=np.float64)
+        track_size = np.array([max(t.box.w, t.box.h) for t in tracks], dtype=np.float64)
+        missed = np.array([t.missed for t in tracks], dtype=np.float64)
+        cost = np.linalg.norm(det_xy[:, None, :] - np.array(predictions)[None, :, :], axis=2)
+        # The gate widens with the object's size and with each frame it went unseen.
+        size = np.maximum(det_size[:, None], track_size[None, :])
+        gate = self.config.gate_px + 0.5 * size * (1.0 + missed[None, :])
+        cost[cost > gate] = np.inf
+        rows_any = np.flatnonzero(np.isfinite(cost).any(axis=1))
+        cols_any = np.flatnonzero(np.isfinite(cost).any(axis=0))
+        matches: list[tuple[int, Track]] = []
+        if rows_any.size:
+            sub = cost[np.ix_(rows_any, cols_any)]
+            rows, cols = linear_sum_assignment(np.where(np.isfinite(sub), sub, 1e9))
+            matches = [
+                (int(rows_any[r]), tracks[int(cols_any[c])])
+                for r, c in zip(rows, cols, strict=True)
+                if np.isfinite(sub[r, c])
+            ]
+        matched_rows = {r for r, _ in matches}
+        return matches, [i for i in range(len(detections)) if i not in matched_rows]
+
+    def _split_merged(
+        self, detections: list[Detection], tracks: list[Track], predictions: list[Point]
+    ) -> tuple[list[tuple[Track, Detection]], list[Detection], list[Track], list[Point]]:
+        """Objects that cross merge into one blob: give each of their tracks its own piece.
+
+        A blob is a merge when it holds the predicted centres of two or more
+        confirmed tracks that were each seen last frame, and is clearly
+        larger than each of them. Each track then gets its own box at its
+        predicted position, cut to the blob. Returns those (track, piece)
+        pairs and what is left for ordinary assignment.
+        """
+        candidates = [
+            (track, predicted)
+            for track, predicted in zip(tracks, predictions, strict=True)
+            if track.track_id and track.missed == 0
+        ]
+        if len(candidates) < 2:
+            return [], detections, tracks, predictions
+        holders: dict[int, list[int]] = {}
+        for t_index, (_, predicted) in enumerate(candidates):
+            inside = [i for i, det in enumerate(detections) if _contains(det.box, predicted)]
+            if len(inside) == 1:
+                holders.setdefault(inside[0], []).append(t_index)
+        merged: list[tuple[Track, Detection]] = []
+        used_detections: set[int] = set()
+        used_tracks: set[int] = set()
+        for det_index, t_indices in holders.items():
+            det = detections[det_index]
+            inside = [candidates[i] for i in t_indices]
+            if len(inside) < 2 or any(t.box.area > 0.8 * det.box.area for t, _ in inside):
+                continue
+            share = det.area / sum(t.box.area for t, _ in inside)
+            for track, predicted in inside:
+                box = _clip(_centred(track.box, predicted), det.box)
+                merged.append((track, Detection(box, predicted, track.box.area * share)))
+                used_tracks.add(track.key)
+            used_detections.add(det_index)
+        if not merged:
+            return [], detections, tracks, predictions
+        rest = [(t, p) for t, p in zip(tracks, predictions, strict=True) if t.key not in used_tracks]
+        return (
+            merged,
+            [d for i, d in enumerate(detections) if i not in used_detections],
+            [t for t, _ in rest],
+            [p for _, p in rest],
+        )
+
+    def _extend(self, track: Track, detection: Detection, time_s: float) -> Detection | None:
+        step = math.dist(detection.centroid, track.last_centroid)
+        track.hits += 1
+        track.missed = 0
+        track.box = detection.box
+        track.total_distance_px += step
+        track.times.append(time_s)
+        track.centroids.append(detection.centroid)
+        track.trail.append(detection.centroid)
+        window = [
+            (t, c)
+            for t, c in zip(track.times, track.centroids, strict=True)
+            if time_s - t <= self.config.smoothing_window_s
+        ]
+        track.velocity = fit_velocity([t for t, _ in window], [c for _, c in window])
+        self._confirm_if_due(track)
+        if not track.track_id:
+            return None
+        return detection.with_track(track.track_id, step, speed(track.velocity))
+
+    def _start(self, detection: Detection, time_s: float) -> Track:
+        track = Track(key=self._next_key, box=detection.box)
+        self._next_key += 1
+        track.times.append(time_s)
+        track.centroids.append(detection.centroid)
+        track.trail.append(detection.centroid)
+        self.tracks[track.key] = track
+        self._confirm_if_due(track)
+        return track
+
+    def _confirm_if_due(self, track: Track) -> None:
+        if not track.track_id and track.hits >= self.config.min_hits:
+            track.track_id = self._next_id
+            self._next_id += 1
+
+
+def _contains(box: Box, point: Point) -> bool:
+    return box.x <= point[0] <= box.x + box.w and box.y <= point[1] <= box.y + box.h
+
+
+def _centred(box: Box, centre: Point) -> Box:
+    return replace(box, x=round(centre[0] - box.w / 2), y=round(centre[1] - box.h / 2))
+
+
+def _clip(box: Box, bounds: Box) -> Box:
+    x0, y0 = max(box.x, bounds.x), max(box.y, bounds.y)
+    x1 = min(box.x + box.w, bounds.x + bounds.w)
+    y1 = min(box.y + box.h, bounds.y + bounds.h)
+    return Box(x0, y0, max(1, x1 - x0), max(1, y1 - y0))

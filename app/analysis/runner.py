@@ -14,18 +14,15 @@ import cv2
 import app
 from app.analysis.outputs import AnnotatedVideo, TracksCsv, write_image, write_json
 from app.analysis.report_html import write_report_html
+from app.analysis.scoring import Scorer
 from app.analysis.truth import Truth, load_truth
 from app.events.alarm import AlarmLogic, MotionEvent
 from app.sources.files import VideoInput, open_input
 from app.vision.annotate import Annotator
 from app.vision.calibration import GroundPlane
 from app.vision.detections import Detection
-from app.vision.metrics import ObjectCounts, PixelCounts
 from app.vision.pipeline import FrameResult, Pipeline, PipelineConfig
 from app.vision.types import Image, Mask
-
-WARM_UP_FRAMES = 20
-"""Frames a background model gets to learn before scores 'after warm-up' count."""
 
 Progress = Callable[[int, int | None], None]
 """Called with (frames done, frames expected or None) as the analysis goes."""
@@ -57,9 +54,11 @@ class _TrackSummary:
     last_ground: tuple[float, float] | None = None
     ranges_m: list[float] = field(default_factory=list)
     path: list[tuple[float, float]] = field(default_factory=list)
+    times: list[float] = field(default_factory=list)
 
     def add(self, frame: int, time_s: float, d: Detection) -> None:
         self.last_frame, self.last_time_s = frame, time_s
+        self.times.append(time_s)
         self.distance_px += d.distance_px
         self.speeds.append(d.speed_px_s)
         self.path.append(d.centroid)
@@ -98,59 +97,6 @@ class _TrackSummary:
         return out
 
 
-class _Scoring:
-    """DR/FAR per object per frame, and CDnet pixel metrics when truth is masks."""
-
-    def __init__(self, truth: Truth, size: tuple[int, int], min_area: float) -> None:
-        self.truth = truth
-        self.size = size
-        self.min_area = min_area
-        self.objects, self.objects_warm = ObjectCounts(), ObjectCounts()
-        self.pixels, self.pixels_warm = PixelCounts(), PixelCounts()
-        self.frames_scored = 0
-        roi = truth.roi
-        if roi is not None and (roi.shape[1], roi.shape[0]) != size:
-            roi = cv2.resize(roi, size, interpolation=cv2.INTER_NEAREST)
-        self.roi = roi
-
-    def add(self, index: int, detections: list[Detection], mask: Mask) -> None:
-        if index not in self.truth.mask_paths and index not in self.truth.boxes:
-            return
-        self.frames_scored += 1
-        warm = index >= WARM_UP_FRAMES
-        true_boxes = self.truth.boxes_at(index, self.min_area)
-        found = [d.box for d in detections]
-        self.objects.add(true_boxes, found)
-        if warm:
-            self.objects_warm.add(true_boxes, found)
-        label = self.truth.mask(index)
-        if label is not None:
-            if (label.shape[1], label.shape[0]) != (mask.shape[1], mask.shape[0]):
-                mask = cv2.resize(mask, (label.shape[1], label.shape[0]),
-                                  interpolation=cv2.INTER_NEAREST)
-            roi = self.roi
-            if roi is not None and roi.shape != label.shape:
-                roi = cv2.resize(roi, (label.shape[1], label.shape[0]),
-                                 interpolation=cv2.INTER_NEAREST)
-            self.pixels.add(mask, label, roi)
-            if warm:
-                self.pixels_warm.add(mask, label, roi)
-
-    def as_dict(self) -> dict[str, Any]:
-        out: dict[str, Any] = {
-            "source": self.truth.source,
-            "kind": self.truth.kind,
-            "frames_scored": self.frames_scored,
-            "warm_up_frames": WARM_UP_FRAMES,
-            "objects": self.objects.as_dict(),
-            "objects_after_warm_up": self.objects_warm.as_dict(),
-        }
-        if self.truth.kind == "masks":
-            out["pixels"] = self.pixels.as_dict()
-            out["pixels_after_warm_up"] = self.pixels_warm.as_dict()
-        return out
-
-
 def analyze(input_path: Path, out_dir: Path, options: AnalysisOptions | None = None,
             progress: Progress | None = None) -> dict[str, Any]:
     """Analyse ``input_path`` into ``out_dir``; returns the report (also report.json).
@@ -182,7 +128,7 @@ class _Analysis:
         self.events: list[dict[str, Any]] = []
         self.tracks: dict[int, _TrackSummary] = {}
         self.frame_stats: list[dict[str, Any]] = []
-        self.scoring = _Scoring(truth, source.size, options.pipeline.min_area) if truth else None
+        self.scoring = Scorer(truth, source.size, options.pipeline.min_area) if truth else None
         self.first_frame: Image | None = None
         self.key_frames: list[dict[str, Any]] = []
 
@@ -222,7 +168,7 @@ class _Analysis:
         if self.options.masks:
             write_image(self.out / "masks" / f"{index:06d}.png", mask_full)
         if self.scoring is not None:
-            self.scoring.add(index, result.detections, mask_full)
+            self.scoring.add(index, [d.box for d in result.detections], mask_full)
         motion_area = sum(d.area for d in result.detections)
         self.frame_stats.append({
             "frame": index, "time_s": round(time_s, 4),
@@ -276,6 +222,7 @@ class _Analysis:
             "header_frames": self.source.header_frames,
             "fps": self.source.fps,
             "size": list(self.source.size),
+            "frame_numbers": self.source.frame_numbers,
             "duration_s": round(frames / self.source.fps, 4),
             "method": config.method,
             "settings": _settings(config, self.pipeline, self.options),
@@ -296,6 +243,7 @@ class _Analysis:
         return {
             "first_frame": self.first_frame,
             "paths": {tid: t.path for tid, t in self.tracks.items()},
+            "speeds": {tid: (t.times, t.speeds) for tid, t in self.tracks.items()},
             "out_dir": self.out,
             "key_frames": self.key_frames,
         }

@@ -165,32 +165,38 @@ class Scene:
 
 
 def standard_scenes() -> dict[str, Scene]:
-    """The scenes every method is judged on (see tests/vision and bench/)."""
+    """The scenes every method is judged on (tests/vision and bench/).
+
+    As a watched camera sees them: an empty scene first, then objects walk
+    in or step out (``first_frame``), with exact boxes and speeds.
+    """
     return {
         "slow-uniform": Scene(
-            name="slow-uniform", frames=120,
-            objects=(MovingObject((40, 100), (6.0, 0.0), (60, 40), 200, textured=False),),
+            name="slow-uniform", frames=150,
+            objects=(MovingObject((40, 100), (6.0, 0.0), (60, 40), 200, textured=False,
+                                  first_frame=15),),
         ),
         "small-fast": Scene(
             name="small-fast", frames=60,
-            objects=(MovingObject((-4, 60), (120.0, 30.0), (14, 14), 220),),
+            objects=(MovingObject((-20, 60), (120.0, 30.0), (14, 14), 220),),
         ),
         "crossing": Scene(
-            name="crossing", frames=90,
+            name="crossing", frames=100,
             objects=(
-                MovingObject((10, 40), (45.0, 20.0), (24, 40), 210),
-                MovingObject((280, 50), (-45.0, 18.0), (24, 40), 30),
-                MovingObject((150, 200), (5.0, -26.0), (30, 30), 180),
+                MovingObject((-10, 40), (45.0, 20.0), (24, 40), 210),
+                MovingObject((306, 50), (-45.0, 18.0), (24, 40), 30),
+                MovingObject((150, 236), (5.0, -26.0), (30, 30), 180),
             ),
         ),
         "night": Scene(
-            name="night", frames=90, background_mean=22, background_contrast=10.0,
-            noise_sigma=5.0, objects=(MovingObject((20, 110), (30.0, 0.0), (30, 50), 50),),
+            name="night", frames=100, background_mean=22, background_contrast=10.0,
+            noise_sigma=5.0,
+            objects=(MovingObject((-25, 110), (30.0, 0.0), (30, 50), 50),),
         ),
         "light-switch": Scene(name="light-switch", frames=60, light_switch_frame=30),
         "swaying": Scene(
-            name="swaying", frames=120, sway_region=(200, 20, 100, 120),
-            objects=(MovingObject((10, 160), (25.0, 0.0), (28, 44), 200),),
+            name="swaying", frames=150, sway_region=(200, 20, 100, 120),
+            objects=(MovingObject((-20, 160), (25.0, 0.0), (28, 44), 200, first_frame=30),),
         ),
-        "swaying-empty": Scene(name="swaying-empty", frames=120, sway_region=(40, 30, 160, 150)),
+        "swaying-empty": Scene(name="swaying-empty", frames=150, sway_region=(40, 30, 160, 150)),
     }

@@ -43,9 +43,11 @@ class GroundPlane:
             raise ValueError("calibration needs at least four image points with ground positions")
         src = np.asarray(image_points, np.float64)
         dst = np.asarray(ground_points, np.float64)
+        if _has_collinear_triple(src) or _has_collinear_triple(dst):
+            raise ValueError("calibration points are degenerate: three of them lie on one line")
         homography, _ = cv2.findHomography(src, dst, 0)
         if homography is None or not np.all(np.isfinite(homography)):
-            raise ValueError("calibration points are degenerate (three of them on one line?)")
+            raise ValueError("calibration points give no homography")
         w = homography[2] @ np.array([src[0, 0], src[0, 1], 1.0])
         return cls(homography, camera_xy, 1.0 if w >= 0 else -1.0)
 
@@ -82,6 +84,17 @@ class GroundPlane:
 
     def range_m(self, ground_xy: Point) -> float:
         return math.dist(ground_xy, self.camera_xy)
+
+
+def _has_collinear_triple(points: npt.NDArray[np.float64]) -> bool:
+    """True when some three of the (first four) points lie on one line."""
+    quad = points[:4]
+    scale = float(np.ptp(quad, axis=0).max()) or 1.0
+    for i, j, k in ((0, 1, 2), (0, 1, 3), (0, 2, 3), (1, 2, 3)):
+        a, b = quad[j] - quad[i], quad[k] - quad[i]
+        if abs(a[0] * b[1] - a[1] * b[0]) < 1e-6 * scale * scale:
+            return True
+    return False
 
 
 @dataclass

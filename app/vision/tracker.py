@@ -144,9 +144,9 @@ class Tracker:
         """Objects that cross merge into one blob: give each of their tracks its own piece.
 
         A blob is a merge when it holds the predicted centres of two or more
-        confirmed tracks that were each seen last frame, and is clearly
-        larger than each of them. Each track then gets its own box at its
-        predicted position, cut to the blob. Returns those (track, piece)
+        confirmed tracks that were each seen last frame (and no other
+        blob holds them). Each track then gets its own box at its predicted
+        position, cut to the blob. Returns those (track, piece)
         pairs and what is left for ordinary assignment.
         """
         candidates = [
@@ -167,7 +167,7 @@ class Tracker:
         for det_index, t_indices in holders.items():
             det = detections[det_index]
             inside = [candidates[i] for i in t_indices]
-            if len(inside) < 2 or any(t.box.area > 0.8 * det.box.area for t, _ in inside):
+            if len(inside) < 2:
                 continue
             share = det.area / sum(t.box.area for t, _ in inside)
             for track, predicted in inside:

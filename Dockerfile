@@ -1,0 +1,25 @@
+# Vigil: the dashboard in a container. Build: docker build -t vigil .
+# Run:   docker run -p 8000:8000 -e VIGIL_PASSWORD=... -v vigil-data:/data vigil
+FROM python:3.11-slim
+
+ENV PYTHONDONTWRITEBYTECODE=1 \
+    PYTHONUNBUFFERED=1 \
+    PIP_NO_CACHE_DIR=1 \
+    PIP_DISABLE_PIP_VERSION_CHECK=1 \
+    VIGIL_DATA_DIR=/data
+
+WORKDIR /opt/vigil
+COPY pyproject.toml README.md ./
+COPY app ./app
+COPY templates ./templates
+COPY static ./static
+RUN pip install . \
+    && useradd --system --create-home --uid 10001 vigil \
+    && mkdir -p /data \
+    && chown vigil /data
+
+USER 10001
+VOLUME ["/data"]
+EXPOSE 8000
+HEALTHCHECK --interval=30s --timeout=5s CMD ["python", "-c", "import urllib.request; urllib.request.urlopen('http://127.0.0.1:8000/api/health', timeout=4)"]
+ENTRYPOINT ["vigil", "serve", "--host", "0.0.0.0", "--port", "8000"]

@@ -1,0 +1,68 @@
+"""Scoring an analysis against ground truth: the paper's DR/FAR and CDnet's pixel metrics."""
+
+from __future__ import annotations
+
+from typing import Any
+
+import cv2
+
+from app.analysis.truth import Truth
+from app.vision.detections import Box
+from app.vision.metrics import ObjectCounts, PixelCounts
+from app.vision.types import Mask
+
+WARM_UP_FRAMES = 20
+"""Frames a background model gets to learn before scores 'after warm-up' count."""
+
+
+class Scorer:
+    """DR/FAR per object per frame, and CDnet pixel metrics when truth is masks."""
+
+    def __init__(self, truth: Truth, size: tuple[int, int], min_area: float) -> None:
+        self.truth = truth
+        self.size = size
+        self.min_area = min_area
+        self.objects, self.objects_warm = ObjectCounts(), ObjectCounts()
+        self.pixels, self.pixels_warm = PixelCounts(), PixelCounts()
+        self.frames_scored = 0
+        roi = truth.roi
+        if roi is not None and (roi.shape[1], roi.shape[0]) != size:
+            roi = cv2.resize(roi, size, interpolation=cv2.INTER_NEAREST)
+        self.roi = roi
+
+    def add(self, index: int, boxes: list[Box], mask: Mask | None) -> None:
+        """Score one frame's reported boxes and (when truth has masks) its motion mask."""
+        if index not in self.truth.mask_paths and index not in self.truth.boxes:
+            return
+        self.frames_scored += 1
+        warm = index >= WARM_UP_FRAMES
+        true_boxes = self.truth.boxes_at(index, self.min_area)
+        self.objects.add(true_boxes, boxes)
+        if warm:
+            self.objects_warm.add(true_boxes, boxes)
+        label = self.truth.mask(index) if mask is not None else None
+        if label is not None and mask is not None:
+            if (label.shape[1], label.shape[0]) != (mask.shape[1], mask.shape[0]):
+                mask = cv2.resize(mask, (label.shape[1], label.shape[0]),
+                                  interpolation=cv2.INTER_NEAREST)
+            roi = self.roi
+            if roi is not None and roi.shape != label.shape:
+                roi = cv2.resize(roi, (label.shape[1], label.shape[0]),
+                                 interpolation=cv2.INTER_NEAREST)
+            self.pixels.add(mask, label, roi)
+            if warm:
+                self.pixels_warm.add(mask, label, roi)
+
+    def as_dict(self) -> dict[str, Any]:
+        out: dict[str, Any] = {
+            "source": self.truth.source,
+            "kind": self.truth.kind,
+            "frames_scored": self.frames_scored,
+            "warm_up_frames": WARM_UP_FRAMES,
+            "objects": self.objects.as_dict(),
+            "objects_after_warm_up": self.objects_warm.as_dict(),
+        }
+        if self.pixels.tp + self.pixels.fp + self.pixels.tn + self.pixels.fn:
+            out["pixels"] = self.pixels.as_dict()
+            out["pixels_after_warm_up"] = self.pixels_warm.as_dict()
+        return out

@@ -1,0 +1,228 @@
+"""Command line: `vigil serve`, `vigil analyze`, `vigil evaluate` (`python -m app` is the same)."""
+
+from __future__ import annotations
+
+import argparse
+import ipaddress
+import json
+import os
+import sys
+from collections.abc import Sequence
+from pathlib import Path
+from typing import Any, NoReturn
+
+from app import __version__
+
+EXIT_BAD_INPUT = 2
+
+
+class _Parser(argparse.ArgumentParser):
+    """argparse, but a usage error is one line on stderr (exit 2), like bad input."""
+
+    def error(self, message: str) -> NoReturn:
+        self.exit(EXIT_BAD_INPUT, f"{self.prog}: error: {message}\n")
+
+
+def _sensitivity(value: str) -> float | None:
+    if value.lower() == "auto":
+        return None
+    try:
+        number = float(value)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"not a number: {value!r}") from None
+    if not 1 <= number <= 255:
+        raise argparse.ArgumentTypeError("sensitivity is a grey-level threshold from 1 to 255")
+    return number
+
+
+def _non_negative(value: str) -> float:
+    try:
+        number = float(value)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"not a number: {value!r}") from None
+    if number < 0:
+        raise argparse.ArgumentTypeError("must be 0 or more")
+    return number
+
+
+def build_parser() -> argparse.ArgumentParser:
+    from app.vision.motion import DEFAULT_METHOD, METHODS
+    from app.vision.preprocess import DENOISE_METHODS, ENHANCE_METHODS
+
+    parser = _Parser(prog="vigil", description="Vigil: tell me, and show me, when something moves.")
+    parser.add_argument("--version", action="version", version=f"vigil {__version__}")
+    commands = parser.add_subparsers(dest="command", required=True, parser_class=_Parser)
+
+    serve = commands.add_parser("serve", help="run the dashboard")
+    serve.add_argument("--host", default=None, help="address to bind (default 127.0.0.1)")
+    serve.add_argument("--port", type=int, default=None, help="port (default 8000)")
+    serve.add_argument("--data", type=Path, default=None, help="folder for the database and snapshots")
+
+    analyze = commands.add_parser("analyze", help="analyse a recorded video offline")
+    analyze.add_argument("input", type=Path, help="a video file or a folder of frames (sorted by name)")
+    analyze.add_argument("--out", type=Path, default=None,
+                         help="output folder (default: ./vigil-out/<input name>)")
+    analyze.add_argument("--method", default=DEFAULT_METHOD, choices=sorted(METHODS),
+                         help=f"segmentation method (default {DEFAULT_METHOD})")
+    analyze.add_argument("--sensitivity", type=_sensitivity, default=None, metavar="N",
+                         help="grey-level threshold 1..255, lower is more sensitive "
+                              "(default: automatic, from the measured camera noise)")
+    analyze.add_argument("--min-area", type=_non_negative, default=100.0, metavar="PX",
+                         help="smallest object in pixels of the input frame (default 100)")
+    analyze.add_argument("--masks", action="store_true", help="also write masks/NNNNNN.png")
+    analyze.add_argument("--truth", type=Path, default=None,
+                         help="ground truth: a CDnet folder, a mask image or a box JSON file")
+    analyze.add_argument("--calibration", type=Path, default=None,
+                         help="camera calibration JSON (docs/calibration.md): adds metres and km/h")
+    analyze.add_argument("--fps", type=float, default=None,
+                         help="frame rate of a folder of frames (default 25)")
+    analyze.add_argument("--denoise", choices=DENOISE_METHODS, default="gaussian")
+    analyze.add_argument("--denoise-kernel", type=int, choices=(1, 3, 5, 7), default=3)
+    analyze.add_argument("--enhance", choices=ENHANCE_METHODS, default="none",
+                         help="contrast enhancement before segmentation (default none)")
+    analyze.add_argument("--detect-width", type=int, default=320,
+                         help="detect on frames at most this wide, 0 = full size (default 320)")
+    analyze.add_argument("--quiet", action="store_true", help="no progress bar and no summary")
+
+    evaluate = commands.add_parser("evaluate", help="score an analyze output folder against truth")
+    evaluate.add_argument("out", type=Path, help="the folder `vigil analyze` wrote")
+    evaluate.add_argument("--truth", type=Path, required=True,
+                          help="a CDnet folder, a mask image or a box JSON file")
+    return parser
+
+
+def _quiet_opencv() -> None:
+    """OpenCV's own warnings would break the one-line error contract on stderr."""
+    import cv2
+
+    cv2.utils.logging.setLogLevel(cv2.utils.logging.LOG_LEVEL_ERROR)
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    args = build_parser().parse_args(argv)
+    _quiet_opencv()
+    if args.command == "serve":
+        return _serve(args)
+    if args.command == "analyze":
+        return _analyze(args)
+    return _evaluate(args)
+
+
+def _fail(command: str, reason: object) -> int:
+    print(f"vigil {command}: error: {reason}", file=sys.stderr)
+    return EXIT_BAD_INPUT
+
+
+def _analyze(args: argparse.Namespace) -> int:
+    from app.analysis.calibration_file import load_calibration
+    from app.analysis.runner import AnalysisOptions, analyze
+    from app.sources.files import open_input
+    from app.vision.pipeline import PipelineConfig
+
+    out = args.out or Path("vigil-out") / (args.input.stem or "input")
+    try:
+        calibration = None
+        if args.calibration is not None:
+            calibration = load_calibration(args.calibration, open_input(args.input, args.fps).size)
+        options = AnalysisOptions(
+            pipeline=PipelineConfig(
+                method=args.method, sensitivity=args.sensitivity, min_area=args.min_area,
+                denoise=args.denoise, denoise_kernel=args.denoise_kernel, enhance=args.enhance,
+                detect_width=args.detect_width,
+            ),
+            masks=args.masks, truth=args.truth, calibration=calibration, fps=args.fps,
+        )
+        with _ProgressBar(enabled=not args.quiet and sys.stderr.isatty()) as bar:
+            report = analyze(args.input, out, options, progress=bar.update)
+    except ValueError as exc:  # InputError, TruthError, CalibrationError: the reason is the message
+        return _fail("analyze", exc)
+    except OSError as exc:
+        return _fail("analyze", f"{exc.strerror or exc}: {exc.filename or out}")
+    if not args.quiet:
+        print(_summary(report, out))
+    return 0
+
+
+def _summary(report: dict[str, Any], out: Path) -> str:
+    line = (f"{report['frames']} frames, {len(report['tracks'])} tracks, {report['events']} events "
+            f"at {report['timings']['frames_per_s']} frames/s -> {out}")
+    evaluation = report.get("evaluation")
+    if evaluation:
+        objects = evaluation["objects"]
+        line += f"\nDR {_rate(objects['detection_rate'])}  FAR {_rate(objects['false_alarm_rate'])}"
+        if "pixels" in evaluation:
+            line += f"  pixel F-measure {evaluation['pixels']['f_measure']:.3f}"
+    return line
+
+
+def _rate(value: float | None) -> str:
+    return "n/a" if value is None else f"{value:.3f}"
+
+
+class _ProgressBar:
+    """A tqdm bar on a terminal; nothing in scripts or with --quiet."""
+
+    def __init__(self, enabled: bool) -> None:
+        self.enabled = enabled
+        self._bar: Any = None
+
+    def __enter__(self) -> _ProgressBar:
+        if self.enabled:
+            from tqdm import tqdm
+
+            self._bar = tqdm(unit="frame", dynamic_ncols=True)
+        return self
+
+    def update(self, done: int, expected: int | None) -> None:
+        if self._bar is None:
+            return
+        if expected and expected >= done:
+            self._bar.total = expected
+        self._bar.update(done - self._bar.n)
+
+    def __exit__(self, *exc: object) -> None:
+        if self._bar is not None:
+            self._bar.close()
+
+
+def _evaluate(args: argparse.Namespace) -> int:
+    from app.analysis.evaluate import evaluate
+
+    try:
+        result = evaluate(args.out, args.truth)
+    except ValueError as exc:
+        return _fail("evaluate", exc)
+    print(json.dumps(result, indent=2))
+    return 0
+
+
+def _is_loopback(host: str) -> bool:
+    if host == "localhost":
+        return True
+    try:
+        return ipaddress.ip_address(host).is_loopback
+    except ValueError:
+        return False
+
+
+def _serve(args: argparse.Namespace) -> int:
+    from app.core.config import Settings
+
+    overrides: dict[str, Any] = {}
+    if args.host is not None:
+        overrides["host"] = args.host
+    if args.port is not None:
+        overrides["port"] = args.port
+    if args.data is not None:
+        overrides["data_dir"] = args.data
+    settings = Settings(**overrides)
+    if not _is_loopback(settings.host) and not (settings.password or os.environ.get("VIGIL_PASSWORD")):
+        return _fail("serve", f"refusing to listen on {settings.host} without a password: "
+                              "set VIGIL_PASSWORD (or bind to 127.0.0.1)")
+    import uvicorn
+
+    from app.api.app import create_app
+
+    uvicorn.run(create_app(settings), host=settings.host, port=settings.port,
+                ws="websockets-sansio", timeout_graceful_shutdown=3, log_level="info")
+    return 0

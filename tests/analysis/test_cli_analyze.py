@@ -1,0 +1,255 @@
+"""`vigil analyze` and `vigil evaluate` as a user runs them: a real process on real files."""
+
+from __future__ import annotations
+
+import csv
+import json
+import subprocess
+import sys
+from pathlib import Path
+
+import cv2
+import numpy as np
+import pytest
+
+from app.sources.synthetic import MovingObject, Scene
+from tests.conftest import ROOT, decode_all, write_scene_video
+
+HEADER = "frame,time_s,track_id,x,y,w,h,cx,cy,area,distance_px,speed_px_s"
+
+# Someone steps out at frame 3 and walks right at a known speed until frame 50.
+WALKER = Scene(
+    name="walker", size=(320, 240), fps=15.0, frames=75,
+    objects=(MovingObject((0, 100), (60.0, 0.0), (30, 44), 210, first_frame=3, last_frame=50),),
+)
+
+
+def vigil(*args: str | Path, cwd: Path = ROOT) -> subprocess.CompletedProcess[str]:
+    return subprocess.run([sys.executable, "-m", "app", *map(str, args)], capture_output=True,
+                          text=True, cwd=cwd, timeout=240)
+
+
+@pytest.fixture(scope="module")
+def walker_video(tmp_path_factory) -> Path:
+    return write_scene_video(WALKER, tmp_path_factory.mktemp("video") / "walker.avi")
+
+
+@pytest.fixture(scope="module")
+def box_truth(tmp_path_factory) -> Path:
+    frames = {str(i): [t.box.as_list() for t in WALKER.truth(i)] for i in range(WALKER.frames)}
+    path = tmp_path_factory.mktemp("truth") / "truth.json"
+    path.write_text(json.dumps({"frames": frames}))
+    return path
+
+
+@pytest.fixture(scope="module")
+def analysed(tmp_path_factory, walker_video, box_truth) -> Path:
+    out = tmp_path_factory.mktemp("out")
+    result = vigil("analyze", walker_video, "--out", out, "--masks", "--truth", box_truth)
+    assert result.returncode == 0, result.stderr
+    assert result.stderr == ""
+    return out
+
+
+def read_tracks(out: Path) -> list[dict[str, str]]:
+    with (out / "tracks.csv").open() as handle:
+        return list(csv.DictReader(handle))
+
+
+def test_tracks_csv_has_exact_header_and_boxes_in_input_pixels(analysed):
+    assert (analysed / "tracks.csv").read_text().splitlines()[0] == HEADER
+    rows = read_tracks(analysed)
+    assert rows, "the walker was not tracked"
+    frames = [int(r["frame"]) for r in rows]
+    assert min(frames) <= 5 and max(frames) <= 50
+    for row in rows:
+        truth = {t.box for t in WALKER.truth(int(row["frame"]))}
+        assert truth, f"a detection on frame {row['frame']}, where nothing moves"
+        (box,) = truth
+        found = (int(row["x"]), int(row["y"]), int(row["w"]), int(row["h"]))
+        assert abs(found[0] - box.x) <= 4 and abs(found[1] - box.y) <= 4
+        assert float(row["time_s"]) == pytest.approx(int(row["frame"]) / WALKER.fps, abs=1e-3)
+
+
+def test_speed_is_measured_within_five_percent(analysed):
+    report = json.loads((analysed / "report.json").read_text())
+    (track,) = report["tracks"]
+    assert track["mean_speed_px_s"] == pytest.approx(60.0, rel=0.05)
+    settled = [float(r["speed_px_s"]) for r in read_tracks(analysed)[8:-3]]
+    assert statistics_median(settled) == pytest.approx(60.0, rel=0.05)
+
+
+def statistics_median(values: list[float]) -> float:
+    return float(np.median(values))
+
+
+def test_events_json_and_one_snapshot_per_event(analysed):
+    events = json.loads((analysed / "events.json").read_text())["events"]
+    assert len(events) == 1
+    event = events[0]
+    assert {"id", "start_frame", "end_frame", "start_time_s", "end_time_s", "max_area",
+            "snapshot"} <= set(event)
+    assert event["start_frame"] <= 5 and 45 <= event["end_frame"] <= 51
+    snapshots = sorted((analysed / "snapshots").iterdir())
+    assert [p.name for p in snapshots] == [Path(event["snapshot"]).name]
+    picture = cv2.imread(str(analysed / event["snapshot"]))
+    assert picture.shape == (240, 320, 3)
+    assert (analysed / "differences" / snapshots[0].name).is_file()
+
+
+def test_report_json_carries_settings_stats_timings_and_rates(analysed):
+    report = json.loads((analysed / "report.json").read_text())
+    assert report["frames"] == WALKER.frames
+    assert report["fps"] == pytest.approx(15.0)
+    assert report["size"] == [320, 240]
+    assert report["method"] == "adaptive"
+    assert report["settings"]["sensitivity_mode"] == "automatic"
+    assert len(report["frame_stats"]) == WALKER.frames
+    first = report["frame_stats"][0]
+    assert 80 < first["grey_mean"] < 140 and first["grey_std"] > 5
+    assert report["timings"]["frames_per_s"] > 0
+    assert "segment" in report["timings"]["median_stage_ms"]
+    objects = report["evaluation"]["objects"]
+    assert objects["detection_rate"] >= 0.95
+    assert objects["false_alarm_rate"] <= 0.05
+
+
+def test_annotated_video_decodes_frame_for_frame_with_red_boxes(analysed):
+    frames = list(decode_all(analysed / "annotated.avi"))
+    assert len(frames) == WALKER.frames
+    assert frames[0].shape == (240, 320, 3)
+    middle = frames[25].astype(int)
+    red = (middle[..., 2] > 180) & (middle[..., 1] < 80) & (middle[..., 0] < 80)
+    assert red.sum() > 50
+
+
+def test_masks_are_zero_based_binary_and_full_size(analysed):
+    masks = sorted((analysed / "masks").iterdir())
+    assert [p.name for p in masks[:2]] == ["000000.png", "000001.png"]
+    assert len(masks) == WALKER.frames
+    mask = cv2.imread(str(masks[25]), cv2.IMREAD_GRAYSCALE)
+    assert mask.shape == (240, 320)
+    assert set(np.unique(mask)) == {0, 255}
+    (box,) = [t.box for t in WALKER.truth(25)]
+    assert mask[box.y + box.h // 2, box.x + box.w // 2] == 255
+
+
+def test_report_html_shows_charts_and_rates(analysed):
+    html = (analysed / "report.html").read_text()
+    assert html.count("data:image/png;base64,") >= 4
+    assert "DR" in html and "FAR" in html and "data:image/jpeg;base64," in html
+
+
+def test_evaluate_rescores_the_folder(analysed, box_truth):
+    result = vigil("evaluate", analysed, "--truth", box_truth)
+    assert result.returncode == 0, result.stderr
+    rates = json.loads(result.stdout)["objects"]
+    report = json.loads((analysed / "report.json").read_text())
+    assert rates == report["evaluation"]["objects"]
+
+
+def test_cdnet_style_truth_gives_pixel_metrics(tmp_path, walker_video):
+    gt = tmp_path / "seq" / "groundtruth"
+    gt.mkdir(parents=True)
+    for i in range(WALKER.frames):
+        label = np.zeros((240, 320), np.uint8)
+        for t in WALKER.truth(i):
+            label[t.box.y : t.box.y + t.box.h, t.box.x : t.box.x + t.box.w] = 255
+        cv2.imwrite(str(gt / f"gt{i + 1:06d}.png"), label)
+    (tmp_path / "seq" / "temporalROI.txt").write_text(f"1 {WALKER.frames}")
+    result = vigil("analyze", walker_video, "--out", tmp_path / "out", "--truth", tmp_path / "seq",
+                   "--quiet")
+    assert result.returncode == 0, result.stderr
+    assert result.stdout == ""
+    pixels = json.loads((tmp_path / "out" / "report.json").read_text())["evaluation"]["pixels"]
+    assert pixels["f_measure"] > 0.8
+
+
+def test_folder_of_frames_sorted_by_name(tmp_path):
+    folder = tmp_path / "frames"
+    folder.mkdir()
+    for i in range(40):
+        cv2.imwrite(str(folder / f"img{i:04d}.png"), WALKER.frame(i))
+    result = vigil("analyze", folder, "--out", tmp_path / "out", "--fps", "15", "--quiet")
+    assert result.returncode == 0, result.stderr
+    report = json.loads((tmp_path / "out" / "report.json").read_text())
+    assert report["frames"] == 40 and report["fps"] == 15
+    assert report["tracks"][0]["mean_speed_px_s"] == pytest.approx(60.0, rel=0.05)
+
+
+def test_calibrated_camera_gives_metres_and_km_h(tmp_path, walker_video):
+    # Straight down from 10 m, 90 degree field of view over 240 rows: 0.0833 m per pixel,
+    # so 60 px/s is 5 m/s = 18 km/h.
+    calibration = tmp_path / "camera.json"
+    calibration.write_text(json.dumps({"camera_height_m": 10, "tilt_deg": 90,
+                                       "vertical_fov_deg": 90}))
+    result = vigil("analyze", walker_video, "--out", tmp_path / "out", "--calibration",
+                   calibration, "--quiet")
+    assert result.returncode == 0, result.stderr
+    (track,) = json.loads((tmp_path / "out" / "report.json").read_text())["tracks"]
+    assert track["mean_speed_km_h"] == pytest.approx(18.0, rel=0.06)
+
+
+def test_truncated_video_is_analysed_up_to_where_it_breaks(tmp_path, walker_video):
+    data = walker_video.read_bytes()
+    cut = tmp_path / "cut.avi"
+    cut.write_bytes(data[: len(data) // 2])  # the header still claims every frame
+    result = vigil("analyze", cut, "--out", tmp_path / "out", "--quiet")
+    assert result.returncode == 0, result.stderr
+    report = json.loads((tmp_path / "out" / "report.json").read_text())
+    assert 10 < report["frames"] < WALKER.frames
+
+
+def _missing(d: Path) -> Path:
+    return d / "missing.avi"
+
+
+def _empty(d: Path) -> Path:
+    (d / "empty.avi").write_bytes(b"")
+    return d / "empty.avi"
+
+
+def _text(d: Path) -> Path:
+    (d / "text.avi").write_text("hello, not a video\n" * 50)
+    return d / "text.avi"
+
+
+def _empty_folder(d: Path) -> Path:
+    (d / "noframes").mkdir()
+    return d / "noframes"
+
+
+@pytest.mark.parametrize(
+    ("make", "reason"),
+    [(_missing, "not found"), (_empty, "empty"), (_text, "not a video"),
+     (_empty_folder, "no image frames")],
+    ids=["missing", "empty", "not-a-video", "empty-folder"],
+)
+def test_bad_input_exits_2_with_one_readable_line(tmp_path, make, reason):
+    result = vigil("analyze", make(tmp_path), "--out", tmp_path / "out")
+    assert result.returncode == 2
+    lines = result.stderr.strip().splitlines()
+    assert len(lines) == 1, result.stderr
+    assert reason in lines[0] and "Traceback" not in result.stderr
+
+
+def test_bad_truth_and_bad_options_exit_2(tmp_path, walker_video):
+    bad = tmp_path / "truth.json"
+    bad.write_text('{"frames": {"0": [[1, 2, 3]]}}')
+    result = vigil("analyze", walker_video, "--out", tmp_path / "o", "--truth", bad)
+    assert result.returncode == 2 and "box" in result.stderr
+    result = vigil("analyze", walker_video, "--sensitivity", "900")
+    assert result.returncode == 2 and len(result.stderr.strip().splitlines()) == 1
+    result = vigil("analyze", walker_video, "--method", "magic")
+    assert result.returncode == 2 and "invalid choice" in result.stderr
+
+
+def test_sensitivity_changes_what_is_detected(tmp_path, walker_video):
+    counts = {}
+    for sensitivity in ("8", "200"):
+        out = tmp_path / sensitivity
+        result = vigil("analyze", walker_video, "--out", out, "--sensitivity", sensitivity,
+                       "--quiet")
+        assert result.returncode == 0, result.stderr
+        counts[sensitivity] = len(read_tracks(out))
+    assert counts["8"] > 20 and counts["200"] == 0

@@ -1,0 +1,53 @@
+"""Fixtures shared by every test folder: real footage, synthetic videos on disk."""
+
+from __future__ import annotations
+
+import os
+from collections.abc import Iterator
+from pathlib import Path
+
+import cv2
+import pytest
+
+from app.sources.synthetic import Scene
+
+ROOT = Path(__file__).resolve().parents[1]
+
+
+def shared_data_dir() -> Path | None:
+    """`../shared/data` beside the repository (or $VIGIL_SHARED_DATA), if it is there."""
+    candidates = [os.environ.get("VIGIL_SHARED_DATA"), ROOT.parent / "shared" / "data"]
+    for candidate in candidates:
+        if candidate and Path(candidate).is_dir():
+            return Path(candidate)
+    return None
+
+
+@pytest.fixture
+def shared_data() -> Path:
+    found = shared_data_dir()
+    if found is None:
+        pytest.skip("real footage not present: ../shared/data is absent")
+    return found
+
+
+def write_scene_video(scene: Scene, path: Path, fourcc: str = "MJPG") -> Path:
+    """Render a synthetic scene into a real video file."""
+    writer = cv2.VideoWriter(str(path), cv2.VideoWriter.fourcc(*fourcc), scene.fps, scene.size)
+    assert writer.isOpened(), f"cannot write {path}"
+    for frame in scene.frames_iter():
+        writer.write(frame)
+    writer.release()
+    return path
+
+
+def decode_all(path: Path) -> Iterator:
+    capture = cv2.VideoCapture(str(path))
+    try:
+        while True:
+            ok, frame = capture.read()
+            if not ok:
+                return
+            yield frame
+    finally:
+        capture.release()

@@ -1,0 +1,114 @@
+import numpy as np
+import pytest
+
+from app.vision.motion import METHODS, create_method
+from app.vision.motion.adaptive_background import AdaptiveBackground
+from app.vision.motion.frame_difference import FrameDifference
+
+SIZE = (120, 160)
+
+
+def textured_background(seed=0):
+    rng = np.random.default_rng(seed)
+    return rng.integers(60, 160, SIZE, dtype=np.uint8)
+
+
+def with_square(background, x, y, size=20, level=250):
+    frame = background.copy()
+    frame[y : y + size, x : x + size] = level
+    return frame
+
+
+def test_registry_names_every_method():
+    assert set(METHODS) == {"adaptive", "frame-difference", "three-frame", "mog2", "knn"}
+    with pytest.raises(ValueError, match="unknown method"):
+        create_method("nope")
+
+
+@pytest.mark.parametrize("name", sorted(METHODS))
+def test_every_method_finds_a_square_that_appears_and_ignores_a_still_scene(name):
+    method = create_method(name)
+    background = textured_background()
+    for _ in range(30):
+        result = method.apply(background)
+    assert np.count_nonzero(result.mask) < 0.01 * result.mask.size
+    method.apply(with_square(background, 40, 40))
+    result = method.apply(with_square(background, 44, 40))
+    assert result.mask.shape == SIZE and result.mask.dtype == np.uint8
+    assert np.count_nonzero(result.mask[40:60, 44:64]) > 40
+
+
+def test_frame_difference_is_the_papers_absolute_difference():
+    method = FrameDifference(sensitivity=30)
+    first = np.full(SIZE, 100, np.uint8)
+    second = first.copy()
+    second[10, 10] = 131  # difference 31 > 30
+    second[20, 20] = 130  # difference 30, not above the threshold
+    method.apply(first)
+    result = method.apply(second)
+    assert result.difference[10, 10] == 31
+    assert result.mask[10, 10] == 255 and result.mask[20, 20] == 0
+
+
+def test_sensitivity_change_acts_on_the_next_frame():
+    method = FrameDifference(sensitivity=50)
+    base = np.full(SIZE, 100, np.uint8)
+    changed = base.copy()
+    changed[:10, :10] = 140
+    method.apply(base)
+    assert not method.apply(changed).mask.any()
+    method.sensitivity = 20
+    assert method.apply(base).mask[:10, :10].all()
+
+
+def test_sensitivity_outside_grey_range_is_refused():
+    with pytest.raises(ValueError, match="between 1 and 255"):
+        FrameDifference(sensitivity=0)
+
+
+def test_adaptive_relearns_a_light_switch_instead_of_reporting_it():
+    method = AdaptiveBackground()
+    background = textured_background(1)
+    for _ in range(20):
+        method.apply(background)
+    # A lamp at one side: brighter, and unevenly, so no single gain explains it.
+    lamp = np.linspace(1.2, 2.2, SIZE[1])[None, :]
+    lit = np.clip(background * lamp + 30, 0, 255).astype(np.uint8)
+    result = method.apply(lit)
+    assert result.global_change
+    for _ in range(5):
+        assert not result.mask.any()
+        result = method.apply(lit)
+
+
+def test_adaptive_keeps_a_slow_uniform_object_that_frame_difference_loses():
+    background = textured_background(2)
+    adaptive, difference = AdaptiveBackground(), FrameDifference()
+    for _ in range(20):
+        adaptive.apply(background)
+        difference.apply(background)
+    for step in range(30):  # a flat 30x30 square creeping half a pixel per frame
+        frame = with_square(background, 40 + step // 2, 40, size=30, level=230)
+        a, d = adaptive.apply(frame), difference.apply(frame)
+    inside = (slice(45, 65), slice(60, 70))  # the square's middle, unchanged frame to frame
+    assert a.mask[inside].all()
+    assert not d.mask[inside].any()
+
+
+def test_adaptive_absorbs_an_object_that_stops():
+    method = AdaptiveBackground(absorb_after=15)
+    background = textured_background(3)
+    for _ in range(10):
+        method.apply(background)
+    parked = with_square(background, 50, 50)
+    for _ in range(40):
+        result = method.apply(parked)
+    assert not result.mask.any()
+
+
+def test_reset_forgets_the_scene():
+    method = AdaptiveBackground()
+    for _ in range(5):
+        method.apply(textured_background(4))
+    method.reset()
+    assert not method.apply(textured_background(5)).mask.any()

@@ -1,0 +1,29 @@
+import numpy as np
+import pytest
+
+from app.vision.noise import NoiseEstimator, noise_sigma
+
+
+@pytest.mark.parametrize("sigma", [2.0, 5.0, 12.0])
+def test_noise_sigma_recovers_gaussian_sigma(sigma):
+    rng = np.random.default_rng(3)
+    difference = np.abs(rng.normal(0, sigma, (240, 320))).round().clip(0, 255).astype(np.uint8)
+    assert noise_sigma(difference) == pytest.approx(sigma, rel=0.1)
+
+
+def test_noise_estimate_ignores_a_moving_object():
+    rng = np.random.default_rng(4)
+    difference = np.abs(rng.normal(0, 3, (240, 320))).round().astype(np.uint8)
+    difference[50:150, 50:150] = 120  # an object covering 13% of the frame
+    assert noise_sigma(difference) == pytest.approx(3.0, rel=0.2)
+
+
+def test_threshold_follows_noise_within_floor_and_ceiling():
+    quiet, noisy = NoiseEstimator(), NoiseEstimator()
+    rng = np.random.default_rng(5)
+    for _ in range(20):
+        quiet.update(np.zeros((60, 80), np.uint8))
+        noisy.update(np.abs(rng.normal(0, 8, (60, 80))).astype(np.uint8))
+    assert quiet.threshold == quiet.floor
+    assert noisy.threshold > 25
+    assert noisy.threshold <= noisy.ceiling

@@ -56,38 +56,75 @@ def build_parser() -> argparse.ArgumentParser:
     serve = commands.add_parser("serve", help="run the dashboard")
     serve.add_argument("--host", default=None, help="address to bind (default 127.0.0.1)")
     serve.add_argument("--port", type=int, default=None, help="port (default 8000)")
-    serve.add_argument("--data", type=Path, default=None, help="folder for the database and snapshots")
+    serve.add_argument(
+        "--data", type=Path, default=None, help="folder for the database and snapshots"
+    )
 
     analyze = commands.add_parser("analyze", help="analyse a recorded video offline")
-    analyze.add_argument("input", type=Path, help="a video file or a folder of frames (sorted by name)")
-    analyze.add_argument("--out", type=Path, default=None,
-                         help="output folder (default: ./vigil-out/<input name>)")
-    analyze.add_argument("--method", default=DEFAULT_METHOD, choices=sorted(METHODS),
-                         help=f"segmentation method (default {DEFAULT_METHOD})")
-    analyze.add_argument("--sensitivity", type=_sensitivity, default=None, metavar="N",
-                         help="grey-level threshold 1..255, lower is more sensitive "
-                              "(default: automatic, from the measured camera noise)")
-    analyze.add_argument("--min-area", type=_non_negative, default=100.0, metavar="PX",
-                         help="smallest object in pixels of the input frame (default 100)")
+    analyze.add_argument(
+        "input", type=Path, help="a video file or a folder of frames (sorted by name)"
+    )
+    analyze.add_argument(
+        "--out", type=Path, default=None, help="output folder (default: ./vigil-out/<input name>)"
+    )
+    analyze.add_argument(
+        "--method",
+        default=DEFAULT_METHOD,
+        choices=sorted(METHODS),
+        help=f"segmentation method (default {DEFAULT_METHOD})",
+    )
+    analyze.add_argument(
+        "--sensitivity",
+        type=_sensitivity,
+        default=None,
+        metavar="N",
+        help="grey-level threshold 1..255, lower is more sensitive "
+        "(default: automatic, from the measured camera noise)",
+    )
+    analyze.add_argument(
+        "--min-area",
+        type=_non_negative,
+        default=100.0,
+        metavar="PX",
+        help="smallest object in pixels of the input frame (default 100)",
+    )
     analyze.add_argument("--masks", action="store_true", help="also write masks/NNNNNN.png")
-    analyze.add_argument("--truth", type=Path, default=None,
-                         help="ground truth: a CDnet folder, a mask image or a box JSON file")
-    analyze.add_argument("--calibration", type=Path, default=None,
-                         help="camera calibration JSON (docs/calibration.md): adds metres and km/h")
-    analyze.add_argument("--fps", type=float, default=None,
-                         help="frame rate of a folder of frames (default 25)")
+    analyze.add_argument(
+        "--truth",
+        type=Path,
+        default=None,
+        help="ground truth: a CDnet folder, a mask image or a box JSON file",
+    )
+    analyze.add_argument(
+        "--calibration",
+        type=Path,
+        default=None,
+        help="camera calibration JSON (docs/calibration.md): adds metres and km/h",
+    )
+    analyze.add_argument(
+        "--fps", type=float, default=None, help="frame rate of a folder of frames (default 25)"
+    )
     analyze.add_argument("--denoise", choices=DENOISE_METHODS, default="gaussian")
     analyze.add_argument("--denoise-kernel", type=int, choices=(1, 3, 5, 7), default=3)
-    analyze.add_argument("--enhance", choices=ENHANCE_METHODS, default="none",
-                         help="contrast enhancement before segmentation (default none)")
-    analyze.add_argument("--detect-width", type=int, default=320,
-                         help="detect on frames at most this wide, 0 = full size (default 320)")
+    analyze.add_argument(
+        "--enhance",
+        choices=ENHANCE_METHODS,
+        default="none",
+        help="contrast enhancement before segmentation (default none)",
+    )
+    analyze.add_argument(
+        "--detect-width",
+        type=int,
+        default=320,
+        help="detect on frames at most this wide, 0 = full size (default 320)",
+    )
     analyze.add_argument("--quiet", action="store_true", help="no progress bar and no summary")
 
     evaluate = commands.add_parser("evaluate", help="score an analyze output folder against truth")
     evaluate.add_argument("out", type=Path, help="the folder `vigil analyze` wrote")
-    evaluate.add_argument("--truth", type=Path, required=True,
-                          help="a CDnet folder, a mask image or a box JSON file")
+    evaluate.add_argument(
+        "--truth", type=Path, required=True, help="a CDnet folder, a mask image or a box JSON file"
+    )
     return parser
 
 
@@ -126,11 +163,18 @@ def _analyze(args: argparse.Namespace) -> int:
             calibration = load_calibration(args.calibration, open_input(args.input, args.fps).size)
         options = AnalysisOptions(
             pipeline=PipelineConfig(
-                method=args.method, sensitivity=args.sensitivity, min_area=args.min_area,
-                denoise=args.denoise, denoise_kernel=args.denoise_kernel, enhance=args.enhance,
+                method=args.method,
+                sensitivity=args.sensitivity,
+                min_area=args.min_area,
+                denoise=args.denoise,
+                denoise_kernel=args.denoise_kernel,
+                enhance=args.enhance,
                 detect_width=args.detect_width,
             ),
-            masks=args.masks, truth=args.truth, calibration=calibration, fps=args.fps,
+            masks=args.masks,
+            truth=args.truth,
+            calibration=calibration,
+            fps=args.fps,
         )
         with _ProgressBar(enabled=not args.quiet and sys.stderr.isatty()) as bar:
             report = analyze(args.input, out, options, progress=bar.update)
@@ -144,8 +188,10 @@ def _analyze(args: argparse.Namespace) -> int:
 
 
 def _summary(report: dict[str, Any], out: Path) -> str:
-    line = (f"{report['frames']} frames, {len(report['tracks'])} tracks, {report['events']} events "
-            f"at {report['timings']['frames_per_s']} frames/s -> {out}")
+    line = (
+        f"{report['frames']} frames, {len(report['tracks'])} tracks, {report['events']} events "
+        f"at {report['timings']['frames_per_s']} frames/s -> {out}"
+    )
     evaluation = report.get("evaluation")
     if evaluation:
         objects = evaluation["objects"]
@@ -216,13 +262,24 @@ def _serve(args: argparse.Namespace) -> int:
     if args.data is not None:
         overrides["data_dir"] = args.data
     settings = Settings(**overrides)
-    if not _is_loopback(settings.host) and not (settings.password or os.environ.get("VIGIL_PASSWORD")):
-        return _fail("serve", f"refusing to listen on {settings.host} without a password: "
-                              "set VIGIL_PASSWORD (or bind to 127.0.0.1)")
+    if not _is_loopback(settings.host) and not (
+        settings.password or os.environ.get("VIGIL_PASSWORD")
+    ):
+        return _fail(
+            "serve",
+            f"refusing to listen on {settings.host} without a password: "
+            "set VIGIL_PASSWORD (or bind to 127.0.0.1)",
+        )
     import uvicorn
 
     from app.api.app import create_app
 
-    uvicorn.run(create_app(settings), host=settings.host, port=settings.port,
-                ws="websockets-sansio", timeout_graceful_shutdown=3, log_level="info")
+    uvicorn.run(
+        create_app(settings),
+        host=settings.host,
+        port=settings.port,
+        ws="websockets-sansio",
+        timeout_graceful_shutdown=3,
+        log_level="info",
+    )
     return 0

@@ -28,8 +28,9 @@ def test_dockerfile_runs_as_non_root_and_serves():
 
 
 def test_python_m_app_is_the_cli():
-    result = subprocess.run([sys.executable, "-m", "app", "--help"], capture_output=True, text=True,
-                            cwd=ROOT)
+    result = subprocess.run(
+        [sys.executable, "-m", "app", "--help"], capture_output=True, text=True, cwd=ROOT
+    )
     assert result.returncode == 0
     for command in ("serve", "analyze", "evaluate"):
         assert command in result.stdout

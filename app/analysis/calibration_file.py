@@ -41,11 +41,15 @@ def load_calibration(path: Path, image_size: tuple[int, int]) -> GroundPlane:
                 (camera[0], camera[1]),
             )
         return GroundPlane.from_camera(
-            float(data["camera_height_m"]), float(data["tilt_deg"]),
-            float(data["vertical_fov_deg"]), image_size,
+            float(data["camera_height_m"]),
+            float(data["tilt_deg"]),
+            float(data["vertical_fov_deg"]),
+            image_size,
         )
     except KeyError as exc:
-        raise CalibrationError(f"{path}: missing {exc.args[0]!r} (see docs/calibration.md)") from None
+        raise CalibrationError(
+            f"{path}: missing {exc.args[0]!r} (see docs/calibration.md)"
+        ) from None
     except (TypeError, ValueError) as exc:
         raise CalibrationError(f"{path}: {exc}") from None
 

@@ -24,7 +24,9 @@ def evaluate(out_dir: Path, truth_path: Path) -> dict[str, Any]:
     """Score tracks.csv (and masks/, when the analysis wrote them); writes evaluation.json."""
     report_path, tracks_path = out_dir / "report.json", out_dir / "tracks.csv"
     if not report_path.is_file() or not tracks_path.is_file():
-        raise EvaluationError(f"{out_dir} is not a `vigil analyze` output (no report.json/tracks.csv)")
+        raise EvaluationError(
+            f"{out_dir} is not a `vigil analyze` output (no report.json/tracks.csv)"
+        )
     try:
         report = json.loads(report_path.read_text())
         size = (int(report["size"][0]), int(report["size"][1]))
@@ -54,7 +56,8 @@ def _boxes_by_frame(path: Path) -> dict[int, list[Box]]:
         with path.open(newline="") as handle:
             for row in csv.DictReader(handle):
                 boxes[int(row["frame"])].append(
-                    Box(int(row["x"]), int(row["y"]), int(row["w"]), int(row["h"])))
+                    Box(int(row["x"]), int(row["y"]), int(row["w"]), int(row["h"]))
+                )
     except (OSError, ValueError, KeyError) as exc:
         raise EvaluationError(f"cannot read {path}: {exc}") from None
     return boxes

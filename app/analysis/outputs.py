@@ -15,8 +15,18 @@ from app.vision.detections import Detection
 from app.vision.types import Image
 
 TRACKS_HEADER = (
-    "frame", "time_s", "track_id", "x", "y", "w", "h", "cx", "cy", "area",
-    "distance_px", "speed_px_s",
+    "frame",
+    "time_s",
+    "track_id",
+    "x",
+    "y",
+    "w",
+    "h",
+    "cx",
+    "cy",
+    "area",
+    "distance_px",
+    "speed_px_s",
 )
 
 
@@ -30,11 +40,22 @@ class TracksCsv:
 
     def write(self, frame: int, time_s: float, detections: list[Detection]) -> None:
         for d in detections:
-            self._writer.writerow((
-                frame, f"{time_s:.4f}", d.track_id, d.box.x, d.box.y, d.box.w, d.box.h,
-                f"{d.centroid[0]:.2f}", f"{d.centroid[1]:.2f}", f"{d.area:.1f}",
-                f"{d.distance_px:.3f}", f"{d.speed_px_s:.3f}",
-            ))
+            self._writer.writerow(
+                (
+                    frame,
+                    f"{time_s:.4f}",
+                    d.track_id,
+                    d.box.x,
+                    d.box.y,
+                    d.box.w,
+                    d.box.h,
+                    f"{d.centroid[0]:.2f}",
+                    f"{d.centroid[1]:.2f}",
+                    f"{d.area:.1f}",
+                    f"{d.distance_px:.3f}",
+                    f"{d.speed_px_s:.3f}",
+                )
+            )
 
     def close(self) -> None:
         self._file.close()

@@ -18,10 +18,10 @@ import jinja2
 import matplotlib
 
 matplotlib.use("Agg")
-import matplotlib.pyplot as plt  # noqa: E402  (the backend must be chosen first)
-from matplotlib.figure import Figure  # noqa: E402
+import matplotlib.pyplot as plt
+from matplotlib.figure import Figure
 
-from app.analysis.outputs import write_bytes_atomic  # noqa: E402
+from app.analysis.outputs import write_bytes_atomic
 
 MAX_KEY_FRAMES = 24
 MAX_TRACKS_PLOTTED = 40
@@ -45,7 +45,9 @@ def write_report_html(path: Path, report: dict[str, Any], extras: dict[str, Any]
         if image_path.is_file():
             key_frames.append({**key, "data": _data_uri(image_path.read_bytes(), "image/jpeg")})
     html = _TEMPLATES.get_template("report.html").render(
-        report=report, charts=charts, key_frames=key_frames,
+        report=report,
+        charts=charts,
+        key_frames=key_frames,
         evaluation=report.get("evaluation"),
     )
     write_bytes_atomic(path, html.encode())
@@ -62,8 +64,9 @@ def _tracks_over_scene(first_frame: Any, paths: dict[int, list[tuple[float, floa
         xs, ys = zip(*points, strict=True)
         (line,) = ax.plot(xs, ys, linewidth=1.5)
         ax.plot(xs[-1], ys[-1], "o", color=line.get_color(), markersize=4)
-        ax.annotate(f"#{track_id}", (xs[0], ys[0]), color=line.get_color(), fontsize=8,
-                    fontweight="bold")
+        ax.annotate(
+            f"#{track_id}", (xs[0], ys[0]), color=line.get_color(), fontsize=8, fontweight="bold"
+        )
     ax.set_axis_off()
     return _png(fig)
 
@@ -86,7 +89,9 @@ def _motion_over_time(stats: list[dict[str, Any]]) -> str | None:
         return None
     fig, ax = _figure(8.0, 3.0)
     times = [s["time_s"] for s in stats]
-    ax.fill_between(times, [s["motion_area"] for s in stats], color="#d62728", alpha=0.6, step="mid")
+    ax.fill_between(
+        times, [s["motion_area"] for s in stats], color="#d62728", alpha=0.6, step="mid"
+    )
     ax.set_xlabel("time (s)")
     ax.set_ylabel("moving area (px)")
     twin = ax.twinx()

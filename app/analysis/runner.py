@@ -10,6 +10,7 @@ from pathlib import Path
 from typing import Any
 
 import cv2
+import numpy as np
 
 import app
 from app.analysis.outputs import AnnotatedVideo, TracksCsv, write_image, write_json
@@ -65,8 +66,12 @@ class _TrackSummary:
         if d.ground_xy_m is not None:
             if self.last_ground is not None:
                 self.distance_m += float(
-                    ((d.ground_xy_m[0] - self.last_ground[0]) ** 2
-                     + (d.ground_xy_m[1] - self.last_ground[1]) ** 2) ** 0.5)
+                    (
+                        (d.ground_xy_m[0] - self.last_ground[0]) ** 2
+                        + (d.ground_xy_m[1] - self.last_ground[1]) ** 2
+                    )
+                    ** 0.5
+                )
             self.last_ground = d.ground_xy_m
             if d.speed_m_s is not None:
                 self.speeds_m_s.append(d.speed_m_s)
@@ -87,18 +92,24 @@ class _TrackSummary:
         }
         if self.speeds_m_s:
             mean_m_s = statistics.fmean(self.speeds_m_s[1:] or self.speeds_m_s)
-            out.update({
-                "distance_m": round(self.distance_m, 3),
-                "mean_speed_m_s": round(mean_m_s, 3),
-                "mean_speed_km_h": round(mean_m_s * 3.6, 2),
-                "first_range_m": round(self.ranges_m[0], 2),
-                "last_range_m": round(self.ranges_m[-1], 2),
-            })
+            out.update(
+                {
+                    "distance_m": round(self.distance_m, 3),
+                    "mean_speed_m_s": round(mean_m_s, 3),
+                    "mean_speed_km_h": round(mean_m_s * 3.6, 2),
+                    "first_range_m": round(self.ranges_m[0], 2),
+                    "last_range_m": round(self.ranges_m[-1], 2),
+                }
+            )
         return out
 
 
-def analyze(input_path: Path, out_dir: Path, options: AnalysisOptions | None = None,
-            progress: Progress | None = None) -> dict[str, Any]:
+def analyze(
+    input_path: Path,
+    out_dir: Path,
+    options: AnalysisOptions | None = None,
+    progress: Progress | None = None,
+) -> dict[str, Any]:
     """Analyse ``input_path`` into ``out_dir``; returns the report (also report.json).
 
     Raises InputError or TruthError (both ValueError) with a one-line reason
@@ -116,8 +127,14 @@ def analyze(input_path: Path, out_dir: Path, options: AnalysisOptions | None = N
 
 
 class _Analysis:
-    def __init__(self, source: VideoInput, out_dir: Path, options: AnalysisOptions,
-                 truth: Truth | None, progress: Progress | None) -> None:
+    def __init__(
+        self,
+        source: VideoInput,
+        out_dir: Path,
+        options: AnalysisOptions,
+        truth: Truth | None,
+        progress: Progress | None,
+    ) -> None:
         self.source = source
         self.out = out_dir
         self.options = options
@@ -170,18 +187,25 @@ class _Analysis:
         if self.scoring is not None:
             self.scoring.add(index, [d.box for d in result.detections], mask_full)
         motion_area = sum(d.area for d in result.detections)
-        self.frame_stats.append({
-            "frame": index, "time_s": round(time_s, 4),
-            "grey_mean": round(result.stats.mean, 3), "grey_std": round(result.stats.std, 3),
-            "objects": len(result.detections), "motion_area": round(motion_area, 1),
-            "threshold": round(result.threshold, 2), "global_change": result.global_change,
-        })
+        self.frame_stats.append(
+            {
+                "frame": index,
+                "time_s": round(time_s, 4),
+                "grey_mean": round(result.stats.mean, 3),
+                "grey_std": round(result.stats.std, 3),
+                "objects": len(result.detections),
+                "motion_area": round(motion_area, 1),
+                "threshold": round(result.threshold, 2),
+                "global_change": result.global_change,
+            }
+        )
         for d in result.detections:
             assert d.track_id is not None
             summary = self.tracks.get(d.track_id)
             if summary is None:
                 summary = self.tracks[d.track_id] = _TrackSummary(
-                    d.track_id, index, index, time_s, time_s)
+                    d.track_id, index, index, time_s, time_s
+                )
             summary.add(index, time_s, d)
         update = self.alarms.update(index, time_s, result.detections)
         if update.started is not None:
@@ -198,10 +222,12 @@ class _Analysis:
     def _snapshot(self, event: MotionEvent, annotated: Image, result: FrameResult) -> None:
         name = f"event-{event.id:04d}.jpg"
         write_image(self.out / "snapshots" / name, annotated)
-        difference = cv2.normalize(self._full_size(result.difference), None, 0, 255, cv2.NORM_MINMAX)
+        difference = self._full_size(result.difference)
+        difference = cv2.normalize(difference, np.empty_like(difference), 0, 255, cv2.NORM_MINMAX)
         write_image(self.out / "differences" / name, difference)
-        self.key_frames.append({"event": event.id, "frame": result.index,
-                                "snapshot": f"snapshots/{name}"})
+        self.key_frames.append(
+            {"event": event.id, "frame": result.index, "snapshot": f"snapshots/{name}"}
+        )
 
     def _close_event(self, event: MotionEvent) -> None:
         record = event.as_dict()
@@ -213,7 +239,8 @@ class _Analysis:
         config = self.options.pipeline
         timings = {
             stage: round(1000 * statistics.median(samples), 4)
-            for stage, samples in self.pipeline.timings.items() if samples
+            for stage, samples in self.pipeline.timings.items()
+            if samples
         }
         report: dict[str, Any] = {
             "vigil_version": app.__version__,
@@ -249,7 +276,9 @@ class _Analysis:
         }
 
 
-def _settings(config: PipelineConfig, pipeline: Pipeline, options: AnalysisOptions) -> dict[str, Any]:
+def _settings(
+    config: PipelineConfig, pipeline: Pipeline, options: AnalysisOptions
+) -> dict[str, Any]:
     settings = asdict(config)
     settings["sensitivity_mode"] = "manual" if config.sensitivity is not None else "automatic"
     settings["threshold_in_force"] = round(pipeline.method.threshold, 2)

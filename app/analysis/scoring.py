@@ -43,12 +43,14 @@ class Scorer:
         label = self.truth.mask(index) if mask is not None else None
         if label is not None and mask is not None:
             if (label.shape[1], label.shape[0]) != (mask.shape[1], mask.shape[0]):
-                mask = cv2.resize(mask, (label.shape[1], label.shape[0]),
-                                  interpolation=cv2.INTER_NEAREST)
+                mask = cv2.resize(
+                    mask, (label.shape[1], label.shape[0]), interpolation=cv2.INTER_NEAREST
+                )
             roi = self.roi
             if roi is not None and roi.shape != label.shape:
-                roi = cv2.resize(roi, (label.shape[1], label.shape[0]),
-                                 interpolation=cv2.INTER_NEAREST)
+                roi = cv2.resize(
+                    roi, (label.shape[1], label.shape[0]), interpolation=cv2.INTER_NEAREST
+                )
             self.pixels.add(mask, label, roi)
             if warm:
                 self.pixels_warm.add(mask, label, roi)

@@ -115,8 +115,13 @@ def _load_mask_folder(folder: Path, input_numbers: Sequence[int | None] | None) 
     return _load_masks(files, temporal, roi, input_numbers, str(folder))
 
 
-def _load_masks(files: list[Path], temporal: tuple[int, int] | None, roi: Mask | None,
-                input_numbers: Sequence[int | None] | None, source: str) -> Truth:
+def _load_masks(
+    files: list[Path],
+    temporal: tuple[int, int] | None,
+    roi: Mask | None,
+    input_numbers: Sequence[int | None] | None,
+    source: str,
+) -> Truth:
     numbered = {frame_number(p): p for p in files}
     truth = Truth(kind="masks", roi=roi, source=source)
     by_number = input_numbers is not None and all(n is not None for n in input_numbers)
@@ -162,8 +167,10 @@ def _load_box_json(path: Path) -> Truth:
     if isinstance(frames, dict):
         items = [(key, value) for key, value in frames.items()]
     elif isinstance(frames, list):
-        items = [(entry.get("frame"), entry.get("boxes")) if isinstance(entry, dict) else (None, None)
-                 for entry in frames]
+        items = [
+            (entry.get("frame"), entry.get("boxes")) if isinstance(entry, dict) else (None, None)
+            for entry in frames
+        ]
     else:
         raise TruthError(f'{path}: expected {{"frames": ...}} with boxes per frame')
     truth = Truth(kind="boxes", source=str(path))
@@ -188,7 +195,9 @@ def _box(value: object, path: Path, frame: int) -> Box:
             raise TypeError
         box = Box(int(x), int(y), int(w), int(h))
     except (KeyError, TypeError, ValueError, OverflowError):
-        raise TruthError(f"{path}: frame {frame}: a box is [x, y, w, h] or {{x, y, w, h}}") from None
+        raise TruthError(
+            f"{path}: frame {frame}: a box is [x, y, w, h] or {{x, y, w, h}}"
+        ) from None
     if box.w <= 0 or box.h <= 0:
         raise TruthError(f"{path}: frame {frame}: box {box.as_list()} has no area")
     return box

@@ -77,7 +77,9 @@ class Scene:
             fine = cv2.GaussianBlur(rng.normal(0.0, 1.0, (h, w)), (0, 0), 1.5)
             texture = 0.7 * smooth / (smooth.std() + 1e-9) + 0.3 * fine / (fine.std() + 1e-9)
             # A horizontal ramp makes the light switch non-uniform, as real lamps are.
-            self._cache["background"] = self.background_mean + self.background_contrast * 0.5 * texture
+            self._cache["background"] = (
+                self.background_mean + self.background_contrast * 0.5 * texture
+            )
             self._cache["ramp"] = np.linspace(0.8, 1.2, w)[None, :].repeat(h, axis=0)
             self._cache["foliage"] = cv2.GaussianBlur(rng.normal(0.0, 1.0, (h, w * 2)), (0, 0), 2.0)
         return self._cache["background"]
@@ -101,7 +103,7 @@ class Scene:
         image = self._background().copy()
         if self.sway_region is not None:
             x, y, w, h = self.sway_region
-            shift = int(round(6 * math.sin(2 * math.pi * 0.8 * time_s))) + self.size[0] // 2
+            shift = round(6 * math.sin(2 * math.pi * 0.8 * time_s)) + self.size[0] // 2
             foliage = self._cache["foliage"][y : y + h, shift + x : shift + x + w]
             image[y : y + h, x : x + w] += 28.0 * foliage / (foliage.std() + 1e-9)
         for i, obj in enumerate(self.objects):
@@ -142,16 +144,30 @@ class Scene:
         return index >= obj.first_frame and (obj.last_frame is None or index <= obj.last_frame)
 
     @staticmethod
-    def _paste(image: np.ndarray, texture: np.ndarray, box: tuple[float, float, float, float]) -> None:
+    def _paste(
+        image: np.ndarray, texture: np.ndarray, box: tuple[float, float, float, float]
+    ) -> None:
         """Draw an object at a sub-pixel position (shifted by interpolation, not rounded)."""
         x, y, w, h = box
         ix, iy = math.floor(x), math.floor(y)
-        shift = np.float32([[1, 0, x - ix], [0, 1, y - iy]])
+        shift = np.array([[1, 0, x - ix], [0, 1, y - iy]], np.float32)
         padded_w, padded_h = int(w) + 2, int(h) + 2
-        sprite = cv2.warpAffine(texture.astype(np.float32), shift, (padded_w, padded_h),
-                                flags=cv2.INTER_LINEAR, borderMode=cv2.BORDER_CONSTANT, borderValue=-1)
-        alpha = cv2.warpAffine(np.ones((int(h), int(w)), np.float32), shift, (padded_w, padded_h),
-                               flags=cv2.INTER_LINEAR, borderMode=cv2.BORDER_CONSTANT, borderValue=0)
+        sprite = cv2.warpAffine(
+            texture.astype(np.float32),
+            shift,
+            (padded_w, padded_h),
+            flags=cv2.INTER_LINEAR,
+            borderMode=cv2.BORDER_CONSTANT,
+            borderValue=-1,
+        )
+        alpha = cv2.warpAffine(
+            np.ones((int(h), int(w)), np.float32),
+            shift,
+            (padded_w, padded_h),
+            flags=cv2.INTER_LINEAR,
+            borderMode=cv2.BORDER_CONSTANT,
+            borderValue=0,
+        )
         ih, iw = image.shape
         sx0, sy0 = max(0, -ix), max(0, -iy)
         dx0, dy0 = max(0, ix), max(0, iy)
@@ -172,16 +188,20 @@ def standard_scenes() -> dict[str, Scene]:
     """
     return {
         "slow-uniform": Scene(
-            name="slow-uniform", frames=150,
-            objects=(MovingObject((40, 100), (6.0, 0.0), (60, 40), 200, textured=False,
-                                  first_frame=15),),
+            name="slow-uniform",
+            frames=150,
+            objects=(
+                MovingObject((40, 100), (6.0, 0.0), (60, 40), 200, textured=False, first_frame=15),
+            ),
         ),
         "small-fast": Scene(
-            name="small-fast", frames=60,
+            name="small-fast",
+            frames=60,
             objects=(MovingObject((-20, 60), (120.0, 30.0), (14, 14), 220),),
         ),
         "crossing": Scene(
-            name="crossing", frames=100,
+            name="crossing",
+            frames=100,
             objects=(
                 MovingObject((-10, 40), (45.0, 20.0), (24, 40), 210),
                 MovingObject((306, 50), (-45.0, 18.0), (24, 40), 30),
@@ -189,13 +209,18 @@ def standard_scenes() -> dict[str, Scene]:
             ),
         ),
         "night": Scene(
-            name="night", frames=100, background_mean=22, background_contrast=10.0,
+            name="night",
+            frames=100,
+            background_mean=22,
+            background_contrast=10.0,
             noise_sigma=5.0,
             objects=(MovingObject((-25, 110), (30.0, 0.0), (30, 50), 50),),
         ),
         "light-switch": Scene(name="light-switch", frames=60, light_switch_frame=30),
         "swaying": Scene(
-            name="swaying", frames=150, sway_region=(200, 20, 100, 120),
+            name="swaying",
+            frames=150,
+            sway_region=(200, 20, 100, 120),
             objects=(MovingObject((-20, 160), (25.0, 0.0), (28, 44), 200, first_frame=30),),
         ),
         "swaying-empty": Scene(name="swaying-empty", frames=150, sway_region=(40, 30, 160, 150)),

@@ -42,8 +42,16 @@ class Annotator:
                 (tw, th), base = cv2.getTextSize(label, cv2.FONT_HERSHEY_SIMPLEX, font_scale, 1)
                 top = max(0, b.y - th - base - 2)
                 cv2.rectangle(canvas, (b.x, top), (b.x + tw + 4, top + th + base + 2), RED, -1)
-                cv2.putText(canvas, label, (b.x + 2, top + th + 1), cv2.FONT_HERSHEY_SIMPLEX,
-                            font_scale, WHITE, 1, cv2.LINE_AA)
+                cv2.putText(
+                    canvas,
+                    label,
+                    (b.x + 2, top + th + 1),
+                    cv2.FONT_HERSHEY_SIMPLEX,
+                    font_scale,
+                    WHITE,
+                    1,
+                    cv2.LINE_AA,
+                )
         return canvas
 
     def _label(self, det: Detection) -> str:

@@ -45,8 +45,9 @@ class BlobExtractor:
         return detections
 
 
-def _scaled(x: int, y: int, w: int, h: int, cx: float, cy: float, area: float,
-            scale: float) -> Detection:
+def _scaled(
+    x: int, y: int, w: int, h: int, cx: float, cy: float, area: float, scale: float
+) -> Detection:
     if scale == 1.0:
         return Detection(Box(x, y, w, h), (cx, cy), area)
     # Pixel centres: mask pixel i covers input pixels [i*s, (i+1)*s).

@@ -36,8 +36,12 @@ class GroundPlane:
     """Sign of the homography's w on the ground side of the horizon."""
 
     @classmethod
-    def from_points(cls, image_points: Sequence[Point], ground_points: Sequence[Point],
-                    camera_xy: Point = (0.0, 0.0)) -> GroundPlane:
+    def from_points(
+        cls,
+        image_points: Sequence[Point],
+        ground_points: Sequence[Point],
+        camera_xy: Point = (0.0, 0.0),
+    ) -> GroundPlane:
         """Four (or more) image points and their ground positions in metres."""
         if len(image_points) != len(ground_points) or len(image_points) < 4:
             raise ValueError("calibration needs at least four image points with ground positions")
@@ -49,11 +53,12 @@ class GroundPlane:
         if homography is None or not np.all(np.isfinite(homography)):
             raise ValueError("calibration points give no homography")
         w = homography[2] @ np.array([src[0, 0], src[0, 1], 1.0])
-        return cls(homography, camera_xy, 1.0 if w >= 0 else -1.0)
+        return cls(np.asarray(homography, np.float64), camera_xy, 1.0 if w >= 0 else -1.0)
 
     @classmethod
-    def from_camera(cls, height_m: float, tilt_deg: float, vfov_deg: float,
-                    image_size: tuple[int, int]) -> GroundPlane:
+    def from_camera(
+        cls, height_m: float, tilt_deg: float, vfov_deg: float, image_size: tuple[int, int]
+    ) -> GroundPlane:
         """A camera ``height_m`` above the ground, tilted ``tilt_deg`` below the horizon.
 
         Ground axes: x to the camera's right, y straight ahead along the
@@ -64,15 +69,19 @@ class GroundPlane:
         """
         width, height = image_size
         if height_m <= 0 or not 0 < vfov_deg < 180 or not 0 < tilt_deg <= 90:
-            raise ValueError("camera height must be > 0, tilt in (0, 90], field of view in (0, 180)")
+            raise ValueError(
+                "camera height must be > 0, tilt in (0, 90], field of view in (0, 180)"
+            )
         focal = (height / 2.0) / math.tan(math.radians(vfov_deg) / 2.0)
         cx, cy = (width - 1) / 2.0, (height - 1) / 2.0
         sin_t, cos_t = math.sin(math.radians(tilt_deg)), math.cos(math.radians(tilt_deg))
-        homography = np.array([
-            [height_m, 0.0, -height_m * cx],
-            [0.0, -height_m * sin_t, height_m * (focal * cos_t + cy * sin_t)],
-            [0.0, cos_t, focal * sin_t - cy * cos_t],
-        ])
+        homography = np.array(
+            [
+                [height_m, 0.0, -height_m * cx],
+                [0.0, -height_m * sin_t, height_m * (focal * cos_t + cy * sin_t)],
+                [0.0, cos_t, focal * sin_t - cy * cos_t],
+            ]
+        )
         return cls(homography)
 
     def to_ground(self, point: Point) -> Point | None:
@@ -121,8 +130,11 @@ class GroundTracker:
             history = self._history.setdefault(det.track_id, _GroundHistory())
             history.times.append(time_s)
             history.points.append(ground)
-            window = [(t, p) for t, p in zip(history.times, history.points, strict=True)
-                      if time_s - t <= self.window_s]
+            window = [
+                (t, p)
+                for t, p in zip(history.times, history.points, strict=True)
+                if time_s - t <= self.window_s
+            ]
             velocity = fit_velocity([t for t, _ in window], [p for _, p in window])
             out.append(det.with_ground(ground, self.plane.range_m(ground), speed(velocity)))
         for track_id, history in list(self._history.items()):

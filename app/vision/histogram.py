@@ -42,7 +42,9 @@ def render_histogram(
         bar = round(plot_h * hist[level] / peak)
         if bar:
             shade = (level, level, level)
-            cv2.rectangle(canvas, (int(xs[level]), plot_h - bar), (int(xs[level + 1]) - 1, plot_h), shade, -1)
+            cv2.rectangle(
+                canvas, (int(xs[level]), plot_h - bar), (int(xs[level + 1]) - 1, plot_h), shade, -1
+            )
     cv2.rectangle(canvas, (0, 0), (width - 1, plot_h), (90, 90, 90), 1)
     mean_x = round(stats.mean * width / 256)
     cv2.line(canvas, (mean_x, 0), (mean_x, plot_h), (0, 0, 255), 1)

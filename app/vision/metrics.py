@@ -42,12 +42,18 @@ class ObjectCounts:
         self.fp += len(detected) - matched
 
     def as_dict(self) -> dict[str, float | int | None]:
-        return {"tp": self.tp, "fp": self.fp, "fn": self.fn,
-                "detection_rate": self.detection_rate, "false_alarm_rate": self.false_alarm_rate}
+        return {
+            "tp": self.tp,
+            "fp": self.fp,
+            "fn": self.fn,
+            "detection_rate": self.detection_rate,
+            "false_alarm_rate": self.false_alarm_rate,
+        }
 
 
-def match_boxes(truth: Sequence[Box], detected: Sequence[Box],
-                iou: float = DEFAULT_IOU) -> list[tuple[int, int]]:
+def match_boxes(
+    truth: Sequence[Box], detected: Sequence[Box], iou: float = DEFAULT_IOU
+) -> list[tuple[int, int]]:
     """One-to-one pairs (truth index, detection index) maximising total overlap."""
     if not truth or not detected:
         return []
@@ -108,10 +114,19 @@ class PixelCounts:
         return 2 * p * r / (p + r) if p + r else 0.0
 
     def as_dict(self) -> dict[str, float | int]:
-        return {"tp": self.tp, "fp": self.fp, "tn": self.tn, "fn": self.fn,
-                "recall": self.recall, "specificity": self.specificity, "fpr": self.fpr,
-                "fnr": self.fnr, "pwc": self.pwc, "precision": self.precision,
-                "f_measure": self.f_measure}
+        return {
+            "tp": self.tp,
+            "fp": self.fp,
+            "tn": self.tn,
+            "fn": self.fn,
+            "recall": self.recall,
+            "specificity": self.specificity,
+            "fpr": self.fpr,
+            "fnr": self.fnr,
+            "pwc": self.pwc,
+            "precision": self.precision,
+            "f_measure": self.f_measure,
+        }
 
 
 def _ratio(num: int, den: int) -> float:

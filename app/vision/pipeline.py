@@ -1,8 +1,8 @@
 """The paper's pipeline as named stages, each swappable and timed.
 
-    frame -> grayscale -> histogram statistics -> downscale -> noise removal
-          -> contrast enhancement -> segmentation (method + threshold)
-          -> morphology -> blobs (min area) -> tracking -> calibration
+frame -> grayscale -> histogram statistics -> downscale -> noise removal
+      -> contrast enhancement -> segmentation (method + threshold)
+      -> morphology -> blobs (min area) -> tracking -> calibration
 """
 
 from __future__ import annotations
@@ -17,7 +17,7 @@ from app.vision.detections import Detection
 from app.vision.histogram import GreyStats, grey_stats
 from app.vision.morphology import Morphology
 from app.vision.motion import DEFAULT_METHOD, MotionResult, create_method
-from app.vision.preprocess import DenoiseMethod, Denoise, Downscale, Enhance, EnhanceMethod, to_gray
+from app.vision.preprocess import Denoise, DenoiseMethod, Downscale, Enhance, EnhanceMethod, to_gray
 from app.vision.tracker import Tracker, TrackerConfig
 from app.vision.types import GrayImage, Image, Mask
 
@@ -62,8 +62,12 @@ class FrameResult:
 class Pipeline:
     """Runs one video's frames, in order, through every stage."""
 
-    def __init__(self, config: PipelineConfig | None = None, fps: float = 25.0,
-                 calibration: GroundPlane | None = None) -> None:
+    def __init__(
+        self,
+        config: PipelineConfig | None = None,
+        fps: float = 25.0,
+        calibration: GroundPlane | None = None,
+    ) -> None:
         self.config = config or PipelineConfig()
         self.fps = fps if fps > 0 else 25.0
         self.downscale = Downscale(self.config.detect_width)
@@ -102,8 +106,18 @@ class Pipeline:
         detections = clock("track", self.tracker.update, blobs, time_s)
         if self.ground is not None:
             detections = clock("calibrate", self.ground.update, detections, time_s)
-        return FrameResult(index, time_s, detections, mask, motion.difference, gray, stats,
-                           motion.threshold, motion.global_change, scale)
+        return FrameResult(
+            index,
+            time_s,
+            detections,
+            mask,
+            motion.difference,
+            gray,
+            stats,
+            motion.threshold,
+            motion.global_change,
+            scale,
+        )
 
     def reset(self) -> None:
         self.method.reset()

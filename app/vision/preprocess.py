@@ -38,7 +38,9 @@ class Denoise:
 
     def __post_init__(self) -> None:
         if self.method not in DENOISE_METHODS:
-            raise ValueError(f"unknown denoise method {self.method!r}; choose from {DENOISE_METHODS}")
+            raise ValueError(
+                f"unknown denoise method {self.method!r}; choose from {DENOISE_METHODS}"
+            )
         if self.kernel not in (1, 3, 5, 7):
             raise ValueError(f"denoise kernel must be 1, 3, 5 or 7, not {self.kernel}")
 

@@ -59,7 +59,7 @@ class TrackerConfig:
     smoothing_window_s: float = 0.6
     """Span of history the velocity fit looks at."""
     max_objects: int = 64
-    """Largest blobs kept per frame: beyond this a frame is noise, and assignment cost grows fast."""
+    """Largest blobs kept per frame: past this a frame is noise, and assignment cost grows."""
 
 
 class Tracker:
@@ -76,7 +76,9 @@ class Tracker:
             detections = detections[: self.config.max_objects]
         tracks = list(self.tracks.values())
         predictions = [track.predict(time_s) for track in tracks]
-        merged, detections, tracks, predictions = self._split_merged(detections, tracks, predictions)
+        merged, detections, tracks, predictions = self._split_merged(
+            detections, tracks, predictions
+        )
         matches, unmatched = self._assign(detections, tracks, predictions)
 
         reported: list[Detection] = []
@@ -101,7 +103,9 @@ class Tracker:
 
     def trails(self) -> dict[int, list[Point]]:
         """Recent centroids of every live, confirmed track (for drawing)."""
-        return {track.track_id: list(track.trail) for track in self.tracks.values() if track.track_id}
+        return {
+            track.track_id: list(track.trail) for track in self.tracks.values() if track.track_id
+        }
 
     def reset(self) -> None:
         self.tracks.clear()
@@ -158,9 +162,9 @@ class Tracker:
             return [], detections, tracks, predictions
         holders: dict[int, list[int]] = {}
         for t_index, (_, predicted) in enumerate(candidates):
-            inside = [i for i, det in enumerate(detections) if _contains(det.box, predicted)]
-            if len(inside) == 1:
-                holders.setdefault(inside[0], []).append(t_index)
+            holding = [i for i, det in enumerate(detections) if _contains(det.box, predicted)]
+            if len(holding) == 1:
+                holders.setdefault(holding[0], []).append(t_index)
         merged: list[tuple[Track, Detection]] = []
         used_detections: set[int] = set()
         used_tracks: set[int] = set()
@@ -177,7 +181,9 @@ class Tracker:
             used_detections.add(det_index)
         if not merged:
             return [], detections, tracks, predictions
-        rest = [(t, p) for t, p in zip(tracks, predictions, strict=True) if t.key not in used_tracks]
+        rest = [
+            (t, p) for t, p in zip(tracks, predictions, strict=True) if t.key not in used_tracks
+        ]
         return (
             merged,
             [d for i, d in enumerate(detections) if i not in used_detections],

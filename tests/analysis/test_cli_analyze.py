@@ -19,14 +19,22 @@ HEADER = "frame,time_s,track_id,x,y,w,h,cx,cy,area,distance_px,speed_px_s"
 
 # Someone steps out at frame 3 and walks right at a known speed until frame 50.
 WALKER = Scene(
-    name="walker", size=(320, 240), fps=15.0, frames=75,
+    name="walker",
+    size=(320, 240),
+    fps=15.0,
+    frames=75,
     objects=(MovingObject((0, 100), (60.0, 0.0), (30, 44), 210, first_frame=3, last_frame=50),),
 )
 
 
 def vigil(*args: str | Path, cwd: Path = ROOT) -> subprocess.CompletedProcess[str]:
-    return subprocess.run([sys.executable, "-m", "app", *map(str, args)], capture_output=True,
-                          text=True, cwd=cwd, timeout=240)
+    return subprocess.run(
+        [sys.executable, "-m", "app", *map(str, args)],
+        capture_output=True,
+        text=True,
+        cwd=cwd,
+        timeout=240,
+    )
 
 
 @pytest.fixture(scope="module")
@@ -87,8 +95,15 @@ def test_events_json_and_one_snapshot_per_event(analysed):
     events = json.loads((analysed / "events.json").read_text())["events"]
     assert len(events) == 1
     event = events[0]
-    assert {"id", "start_frame", "end_frame", "start_time_s", "end_time_s", "max_area",
-            "snapshot"} <= set(event)
+    assert {
+        "id",
+        "start_frame",
+        "end_frame",
+        "start_time_s",
+        "end_time_s",
+        "max_area",
+        "snapshot",
+    } <= set(event)
     assert event["start_frame"] <= 5 and 45 <= event["end_frame"] <= 51
     snapshots = sorted((analysed / "snapshots").iterdir())
     assert [p.name for p in snapshots] == [Path(event["snapshot"]).name]
@@ -157,8 +172,9 @@ def test_cdnet_style_truth_gives_pixel_metrics(tmp_path, walker_video):
             label[t.box.y : t.box.y + t.box.h, t.box.x : t.box.x + t.box.w] = 255
         cv2.imwrite(str(gt / f"gt{i + 1:06d}.png"), label)
     (tmp_path / "seq" / "temporalROI.txt").write_text(f"1 {WALKER.frames}")
-    result = vigil("analyze", walker_video, "--out", tmp_path / "out", "--truth", tmp_path / "seq",
-                   "--quiet")
+    result = vigil(
+        "analyze", walker_video, "--out", tmp_path / "out", "--truth", tmp_path / "seq", "--quiet"
+    )
     assert result.returncode == 0, result.stderr
     assert result.stdout == ""
     pixels = json.loads((tmp_path / "out" / "report.json").read_text())["evaluation"]["pixels"]
@@ -181,10 +197,12 @@ def test_calibrated_camera_gives_metres_and_km_h(tmp_path, walker_video):
     # Straight down from 10 m, 90 degree field of view over 240 rows: 0.0833 m per pixel,
     # so 60 px/s is 5 m/s = 18 km/h.
     calibration = tmp_path / "camera.json"
-    calibration.write_text(json.dumps({"camera_height_m": 10, "tilt_deg": 90,
-                                       "vertical_fov_deg": 90}))
-    result = vigil("analyze", walker_video, "--out", tmp_path / "out", "--calibration",
-                   calibration, "--quiet")
+    calibration.write_text(
+        json.dumps({"camera_height_m": 10, "tilt_deg": 90, "vertical_fov_deg": 90})
+    )
+    result = vigil(
+        "analyze", walker_video, "--out", tmp_path / "out", "--calibration", calibration, "--quiet"
+    )
     assert result.returncode == 0, result.stderr
     (track,) = json.loads((tmp_path / "out" / "report.json").read_text())["tracks"]
     assert track["mean_speed_km_h"] == pytest.approx(18.0, rel=0.06)
@@ -221,8 +239,12 @@ def _empty_folder(d: Path) -> Path:
 
 @pytest.mark.parametrize(
     ("make", "reason"),
-    [(_missing, "not found"), (_empty, "empty"), (_text, "not a video"),
-     (_empty_folder, "no image frames")],
+    [
+        (_missing, "not found"),
+        (_empty, "empty"),
+        (_text, "not a video"),
+        (_empty_folder, "no image frames"),
+    ],
     ids=["missing", "empty", "not-a-video", "empty-folder"],
 )
 def test_bad_input_exits_2_with_one_readable_line(tmp_path, make, reason):
@@ -248,8 +270,9 @@ def test_sensitivity_changes_what_is_detected(tmp_path, walker_video):
     counts = {}
     for sensitivity in ("8", "200"):
         out = tmp_path / sensitivity
-        result = vigil("analyze", walker_video, "--out", out, "--sensitivity", sensitivity,
-                       "--quiet")
+        result = vigil(
+            "analyze", walker_video, "--out", out, "--sensitivity", sensitivity, "--quiet"
+        )
         assert result.returncode == 0, result.stderr
         counts[sensitivity] = len(read_tracks(out))
     assert counts["8"] > 20 and counts["200"] == 0

@@ -48,7 +48,12 @@ def test_single_mask_named_by_frame_number(tmp_path):
     "data",
     [
         {"frames": {"0": [[1, 2, 3, 4]], "2": []}},
-        {"frames": [{"frame": 0, "boxes": [{"x": 1, "y": 2, "w": 3, "h": 4}]}, {"frame": 2, "boxes": []}]},
+        {
+            "frames": [
+                {"frame": 0, "boxes": [{"x": 1, "y": 2, "w": 3, "h": 4}]},
+                {"frame": 2, "boxes": []},
+            ]
+        },
     ],
 )
 def test_box_json_in_both_documented_shapes(tmp_path, data):

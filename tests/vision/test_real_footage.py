@@ -20,7 +20,10 @@ from tests.conftest import ROOT
 SEQUENCES = {
     "traffic": ("cdnet-traffic/input", "cdnet-traffic"),
     "fall": ("cdnet-fall/input", "cdnet-fall"),
-    "wallflower": ("wallflower-waving-trees/input", "wallflower-waving-trees/hand_segmented_00247.png"),
+    "wallflower": (
+        "wallflower-waving-trees/input",
+        "wallflower-waving-trees/hand_segmented_00247.png",
+    ),
 }
 
 
@@ -51,9 +54,22 @@ def test_default_method_beats_mog2_on_real_footage(shared_data, sequence):
 @pytest.mark.shared_data
 def test_analyze_on_cdnet_traffic_video_reports_pixel_scores(shared_data, tmp_path):
     result = subprocess.run(
-        [sys.executable, "-m", "app", "analyze", str(shared_data / "cdnet-traffic" / "traffic.avi"),
-         "--out", str(tmp_path), "--truth", str(shared_data / "cdnet-traffic"), "--quiet"],
-        capture_output=True, text=True, cwd=ROOT, timeout=240,
+        [
+            sys.executable,
+            "-m",
+            "app",
+            "analyze",
+            str(shared_data / "cdnet-traffic" / "traffic.avi"),
+            "--out",
+            str(tmp_path),
+            "--truth",
+            str(shared_data / "cdnet-traffic"),
+            "--quiet",
+        ],
+        capture_output=True,
+        text=True,
+        cwd=ROOT,
+        timeout=240,
     )
     assert result.returncode == 0, result.stderr
     report = json.loads((tmp_path / "report.json").read_text())

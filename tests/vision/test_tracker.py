@@ -36,7 +36,9 @@ def test_two_objects_crossing_keep_their_ids():
         if abs(a.box.x - b.box.x) < 20:  # they overlap: the detector sees one merged blob
             x0 = min(a.box.x, b.box.x)
             merged_w = max(a.box.x, b.box.x) + 20 - x0
-            frames.append([Detection(Box(x0, 50, merged_w, 20), (x0 + merged_w / 2, 60), 20.0 * merged_w)])
+            frames.append(
+                [Detection(Box(x0, 50, merged_w, 20), (x0 + merged_w / 2, 60), 20.0 * merged_w)]
+            )
         else:
             frames.append([a, b])
     out = run(tracker, frames)

@@ -55,7 +55,7 @@ class MotionMethod(ABC):
         self._sensitivity = value
         self._sensitivity_changed()
 
-    def _sensitivity_changed(self) -> None:
+    def _sensitivity_changed(self) -> None:  # noqa: B027  (an optional hook, not abstract)
         """Hook for methods whose model must hear of a new sensitivity at once."""
 
     @property

@@ -12,6 +12,7 @@ or the camera's mounting::
 from __future__ import annotations
 
 import json
+import math
 from pathlib import Path
 
 from app.vision.calibration import GroundPlane
@@ -32,13 +33,10 @@ def load_calibration(path: Path, image_size: tuple[int, int]) -> GroundPlane:
         raise CalibrationError(f"{path}: expected a JSON object")
     try:
         if "image_points" in data:
-            camera = tuple(float(v) for v in data.get("camera_xy", (0.0, 0.0)))
-            if len(camera) != 2:
-                raise ValueError("camera_xy needs two numbers")
             return GroundPlane.from_points(
-                [_point(p) for p in data["image_points"]],
-                [_point(p) for p in data["ground_points"]],
-                (camera[0], camera[1]),
+                [_point(p) for p in _list(data["image_points"])],
+                [_point(p) for p in _list(data["ground_points"])],
+                _point(data.get("camera_xy", (0.0, 0.0))),
             )
         return GroundPlane.from_camera(
             float(data["camera_height_m"]),
@@ -54,7 +52,16 @@ def load_calibration(path: Path, image_size: tuple[int, int]) -> GroundPlane:
         raise CalibrationError(f"{path}: {exc}") from None
 
 
+def _list(value: object) -> list[object]:
+    if not isinstance(value, list):
+        raise ValueError(f"expected a list of [x, y] points, not {value!r}")
+    return value
+
+
 def _point(value: object) -> tuple[float, float]:
     if not isinstance(value, list | tuple) or len(value) != 2:
         raise ValueError(f"a point is [x, y], not {value!r}")
-    return (float(value[0]), float(value[1]))
+    point = (float(value[0]), float(value[1]))
+    if not all(math.isfinite(v) for v in point):
+        raise ValueError(f"a point needs finite numbers, not {value!r}")
+    return point

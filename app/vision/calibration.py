@@ -68,6 +68,8 @@ class GroundPlane:
         offsets from the image centre over the focal length: a homography.
         """
         width, height = image_size
+        if not all(map(math.isfinite, (height_m, tilt_deg, vfov_deg))):
+            raise ValueError("camera height, tilt and field of view must be finite numbers")
         if height_m <= 0 or not 0 < vfov_deg < 180 or not 0 < tilt_deg <= 90:
             raise ValueError(
                 "camera height must be > 0, tilt in (0, 90], field of view in (0, 180)"

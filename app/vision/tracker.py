@@ -54,7 +54,7 @@ class TrackerConfig:
     """Frames a track coasts without a detection before it is dropped."""
     min_hits: int = 2
     """Sightings before a track is reported (drops one-frame flickers)."""
-    gate_px: float = 40.0
+    gate_px: float = 25.0
     """Largest jump (beyond the object's own size) a detection may make to join a track."""
     smoothing_window_s: float = 0.6
     """Span of history the velocity fit looks at."""
@@ -126,7 +126,7 @@ class Tracker:
         cost = np.linalg.norm(det_xy[:, None, :] - np.array(predictions)[None, :, :], axis=2)
         # The gate widens with the object's size and with each frame it went unseen.
         size = np.maximum(det_size[:, None], track_size[None, :])
-        gate = self.config.gate_px + 0.5 * size * (1.0 + missed[None, :])
+        gate = self.config.gate_px + size * (0.5 + 0.25 * missed[None, :])
         cost[cost > gate] = np.inf
         rows_any = np.flatnonzero(np.isfinite(cost).any(axis=1))
         cols_any = np.flatnonzero(np.isfinite(cost).any(axis=0))

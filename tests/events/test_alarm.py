@@ -1,0 +1,38 @@
+from app.events.alarm import AlarmLogic
+from app.vision.detections import Box, Detection
+
+MOVING = [Detection(Box(0, 0, 10, 10), (5, 5), 100.0, track_id=3)]
+
+
+def feed(logic, pattern, fps=10.0):
+    updates = []
+    for i, moving in enumerate(pattern):
+        updates.append(logic.update(i, i / fps, MOVING if moving else []))
+    return updates
+
+
+def test_event_starts_on_first_motion_and_ends_after_quiet_period():
+    logic = AlarmLogic(quiet_s=0.5)
+    updates = feed(logic, [0, 1, 1, 1, 0, 0, 0, 0, 0, 0])
+    started = [i for i, u in enumerate(updates) if u.started]
+    ended = [(i, u.ended) for i, u in enumerate(updates) if u.ended]
+    assert started == [1]
+    ((at, event),) = ended
+    assert at == 8  # 0.5 s after the last motion at frame 3
+    assert (event.start_frame, event.end_frame) == (1, 3)
+    assert event.max_area == 100.0 and event.track_ids == {3}
+
+
+def test_short_pause_does_not_split_an_event_but_a_long_one_does():
+    logic = AlarmLogic(quiet_s=0.5)
+    updates = feed(logic, [1, 1, 0, 0, 1, 1, 0, 0, 0, 0, 0, 0, 1])
+    assert sum(1 for u in updates if u.started) == 2
+    assert [u.started.id for u in updates if u.started] == [1, 2]
+
+
+def test_finish_closes_the_open_event():
+    logic = AlarmLogic()
+    feed(logic, [1, 1])
+    event = logic.finish()
+    assert event is not None and event.end_frame == 1
+    assert logic.finish() is None

@@ -1,0 +1,67 @@
+import cv2
+import numpy as np
+
+from app.sources.synthetic import MovingObject, Scene
+from app.vision.pipeline import Pipeline, PipelineConfig
+
+SCENE = Scene(
+    name="vga",
+    size=(640, 480),
+    fps=25.0,
+    frames=40,
+    objects=(MovingObject((50, 200), (100.0, 0.0), (60, 90), 220, first_frame=5),),
+)
+
+
+def test_every_stage_is_timed_and_boxes_come_back_in_input_pixels():
+    pipeline = Pipeline(PipelineConfig(), fps=SCENE.fps)
+    results = [pipeline.process(SCENE.frame(i)) for i in range(SCENE.frames)]
+    stages = {
+        "grayscale",
+        "histogram",
+        "downscale",
+        "denoise",
+        "enhance",
+        "segment",
+        "morphology",
+        "blobs",
+        "track",
+    }
+    assert stages <= set(pipeline.timings)
+    assert all(len(pipeline.timings[s]) == SCENE.frames for s in stages)
+    last = results[-1]
+    assert last.scale == 2.0 and last.mask.shape == (240, 320)
+    (truth,) = SCENE.truth(SCENE.frames - 1)
+    (found,) = last.detections
+    assert found.box.iou(truth.box) > 0.8
+    assert last.time_s == (SCENE.frames - 1) / SCENE.fps
+
+
+def test_full_resolution_detection_when_asked():
+    pipeline = Pipeline(PipelineConfig(detect_width=0), fps=SCENE.fps)
+    result = pipeline.process(SCENE.frame(0))
+    assert result.scale == 1.0 and result.mask.shape == (480, 640)
+
+
+def test_sensitivity_and_min_area_changes_act_on_the_next_frame():
+    pipeline = Pipeline(PipelineConfig(), fps=SCENE.fps)
+    for i in range(20):
+        found = pipeline.process(SCENE.frame(i)).detections
+    assert found
+    pipeline.set_min_area(60 * 90 * 2)
+    assert not pipeline.process(SCENE.frame(20)).detections
+    pipeline.set_min_area(100)
+    pipeline.set_sensitivity(255)
+    assert not pipeline.process(SCENE.frame(21)).detections
+    pipeline.set_sensitivity(None)
+    assert pipeline.process(SCENE.frame(22)).detections
+
+
+def test_grey_statistics_are_of_the_input_frame():
+    frame = np.zeros((100, 100, 3), np.uint8)
+    frame[:50] = 200
+    result = Pipeline().process(frame)
+    assert result.stats.mean == 100.0
+    assert result.stats.std == 100.0
+    assert result.gray.shape == (100, 100)
+    assert cv2.countNonZero(result.mask) == 0

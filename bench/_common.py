@@ -1,0 +1,144 @@
+"""Helpers shared by the benchmark scripts: paths, data lookup, pipelines, tables.
+
+Importing this module puts the repository root on ``sys.path``, so the
+scripts run as ``python bench/NAME.py`` from anywhere without installing Vigil.
+"""
+
+from __future__ import annotations
+
+import argparse
+import os
+import platform
+import statistics
+import sys
+from collections.abc import Iterable, Iterator, Sequence
+from pathlib import Path
+
+REPO_ROOT = Path(__file__).resolve().parent.parent
+if str(REPO_ROOT) not in sys.path:
+    sys.path.insert(0, str(REPO_ROOT))
+
+import cv2  # noqa: E402
+import numpy as np  # noqa: E402
+
+from app.vision.motion import DEFAULT_METHOD, METHODS  # noqa: E402
+from app.vision.pipeline import FrameResult, Pipeline, PipelineConfig  # noqa: E402
+from app.vision.types import Image  # noqa: E402
+
+DATA_CANDIDATES = (REPO_ROOT.parent / "shared" / "data",)
+"""Where the shared real footage is looked for when ``--data`` is not given."""
+
+Cell = str | int | float | None
+
+
+# --- data ------------------------------------------------------------------
+
+
+def add_data_argument(parser: argparse.ArgumentParser) -> None:
+    parser.add_argument(
+        "--data",
+        type=Path,
+        default=None,
+        help="folder of shared real footage (default: ../shared/data beside the repo)",
+    )
+
+
+def data_candidates(explicit: Path | None) -> tuple[Path, ...]:
+    """The folders looked at, in order: ``--data`` alone when given."""
+    return (explicit,) if explicit is not None else DATA_CANDIDATES
+
+
+def find_data_dir(explicit: Path | None) -> Path | None:
+    """The shared data folder, or None when there is none."""
+    for candidate in data_candidates(explicit):
+        if candidate.is_dir():
+            return candidate.resolve()
+    return None
+
+
+def no_data_reason(explicit: Path | None) -> str:
+    looked = ", ".join(str(p) for p in data_candidates(explicit))
+    return f"no shared data folder (looked at {looked}; give --data DIR)"
+
+
+# --- pipelines --------------------------------------------------------------
+
+
+def method_names() -> list[str]:
+    """Every public method, the default first."""
+    return [DEFAULT_METHOD] + [name for name in METHODS if name != DEFAULT_METHOD]
+
+
+def method_label(name: str) -> str:
+    return f"{name} (default)" if name == DEFAULT_METHOD else name
+
+
+def make_pipeline(method: str, fps: float) -> Pipeline:
+    """Vigil's pipeline with its default settings and the given method."""
+    return Pipeline(PipelineConfig(method=method), fps=fps)
+
+
+def run_pipeline(method: str, frames: Iterable[Image], fps: float) -> Iterator[FrameResult]:
+    """Results of a fresh pipeline over ``frames``, one per frame, in order."""
+    pipeline = make_pipeline(method, fps)
+    for frame in frames:
+        yield pipeline.process(frame)
+
+
+# --- numbers and tables ------------------------------------------------------
+
+
+def median(values: Sequence[float]) -> float:
+    return statistics.median(values) if values else float("nan")
+
+
+def fmt(value: float | None, digits: int = 3) -> str:
+    """A number for a table cell; '-' for a missing or undefined value."""
+    if value is None or value != value:
+        return "-"
+    return f"{value:.{digits}f}"
+
+
+def print_table(
+    title: str,
+    headers: Sequence[str],
+    rows: Sequence[Sequence[Cell]],
+    note: str = "",
+    left: int = 1,
+) -> None:
+    """A plain-text table: the first ``left`` columns left-aligned, the rest right-aligned."""
+    cells = [[_cell(c) for c in row] for row in rows]
+    widths = [max(len(h), *(len(row[i]) for row in cells)) for i, h in enumerate(headers)]
+    print(f"\n{title}")
+    if note:
+        print(note)
+    print(_line(headers, widths, left))
+    print("  ".join("-" * w for w in widths))
+    for row in cells:
+        print(_line(row, widths, left))
+
+
+def _cell(value: Cell) -> str:
+    if isinstance(value, float):
+        return fmt(value)
+    return "-" if value is None else str(value)
+
+
+def _line(cells: Sequence[str], widths: Sequence[int], left: int) -> str:
+    padded = (
+        c.ljust(w) if i < left else c.rjust(w)
+        for i, (c, w) in enumerate(zip(cells, widths, strict=True))
+    )
+    return "  ".join(padded).rstrip()
+
+
+def print_environment(title: str) -> None:
+    """Versions, threads and the machine's load: figures compare only like with like."""
+    load = ", ".join(f"{value:.1f}" for value in os.getloadavg())
+    print(title)
+    print(
+        f"python {platform.python_version()}, numpy {np.__version__}, "
+        f"OpenCV {cv2.__version__} ({cv2.getNumThreads()} threads), "
+        f"{os.cpu_count()} CPUs, {platform.machine()} {platform.system()}, "
+        f"load average {load} at start"
+    )

@@ -165,7 +165,7 @@ class _Analysis:
                 self._record(result, annotated)
                 frames += 1
                 if self.progress:
-                    self.progress(frames, self.source.header_frames)
+                    self.progress(frames, self.source.expected_frames)
         finally:
             tracks_csv.close()
             video.close()

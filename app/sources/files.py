@@ -36,6 +36,11 @@ class VideoInput:
     """What the container claims; informational only."""
 
     @property
+    def expected_frames(self) -> int | None:
+        """How many frames to expect, for progress only (a video's header may lie)."""
+        return len(self.images) if self.images is not None else self.header_frames
+
+    @property
     def frame_numbers(self) -> list[int | None] | None:
         """Numbers in the frame files' names (CDnet in000950.jpg -> 950), for truth matching."""
         return [frame_number(p) for p in self.images] if self.images is not None else None
@@ -91,8 +96,12 @@ def open_input(path: Path, fps: float | None = None) -> VideoInput:
         capture.release()
     if not rate or rate != rate or rate <= 0 or rate > 1000:
         rate = DEFAULT_FOLDER_FPS
-    return VideoInput(path, float(rate), (first.shape[1], first.shape[0]),
-                      header_frames=claimed if claimed > 0 else None)
+    return VideoInput(
+        path,
+        float(rate),
+        (first.shape[1], first.shape[0]),
+        header_frames=claimed if claimed > 0 else None,
+    )
 
 
 def _open_folder(folder: Path, fps: float | None) -> VideoInput:
@@ -105,5 +114,6 @@ def _open_folder(folder: Path, fps: float | None) -> VideoInput:
     first = cv2.imread(str(images[0]), cv2.IMREAD_COLOR)
     if first is None:
         raise InputError(f"cannot decode image {images[0].name} in {folder}")
-    return VideoInput(folder, float(fps or DEFAULT_FOLDER_FPS), (first.shape[1], first.shape[0]),
-                      images=images)
+    return VideoInput(
+        folder, float(fps or DEFAULT_FOLDER_FPS), (first.shape[1], first.shape[0]), images=images
+    )

@@ -1,0 +1,6 @@
+"""Persistence: the SQLite database and the snapshot files."""
+
+from app.storage.db import Database
+from app.storage.files import SnapshotStore, prune, stream_zip, write_atomic
+
+__all__ = ["Database", "SnapshotStore", "prune", "stream_zip", "write_atomic"]

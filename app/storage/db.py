@@ -1,0 +1,313 @@
+"""SQLite (stdlib sqlite3, WAL mode): cameras, events, snapshots and analyses.
+
+One connection shared by every thread behind a lock: writes are small and
+rare (an event, a snapshot, a setting), so a lock is simpler than a pool and
+WAL keeps readers of other processes (a backup, ``sqlite3`` by hand) unblocked.
+"""
+
+from __future__ import annotations
+
+import json
+import sqlite3
+import threading
+import time
+from collections.abc import Iterator, Sequence
+from contextlib import contextmanager
+from pathlib import Path
+from typing import Any
+
+SCHEMA = """
+CREATE TABLE IF NOT EXISTS cameras (
+    id INTEGER PRIMARY KEY AUTOINCREMENT,
+    name TEXT NOT NULL,
+    source TEXT NOT NULL,
+    sensitivity REAL,
+    min_area REAL NOT NULL DEFAULT 100,
+    method TEXT NOT NULL,
+    show_mask INTEGER NOT NULL DEFAULT 0,
+    active INTEGER NOT NULL DEFAULT 0,
+    created_at REAL NOT NULL
+);
+CREATE TABLE IF NOT EXISTS events (
+    id INTEGER PRIMARY KEY AUTOINCREMENT,
+    camera_id INTEGER NOT NULL,
+    started_at REAL NOT NULL,
+    ended_at REAL,
+    max_area REAL NOT NULL DEFAULT 0,
+    boxes TEXT NOT NULL DEFAULT '[]',
+    track_ids TEXT NOT NULL DEFAULT '[]'
+);
+CREATE INDEX IF NOT EXISTS events_camera_time ON events (camera_id, started_at);
+CREATE TABLE IF NOT EXISTS snapshots (
+    id INTEGER PRIMARY KEY AUTOINCREMENT,
+    camera_id INTEGER NOT NULL,
+    event_id INTEGER,
+    ts REAL NOT NULL,
+    kind TEXT NOT NULL DEFAULT 'frame',
+    path TEXT NOT NULL,
+    size INTEGER NOT NULL DEFAULT 0
+);
+CREATE INDEX IF NOT EXISTS snapshots_camera_time ON snapshots (camera_id, ts);
+CREATE TABLE IF NOT EXISTS analyses (
+    id TEXT PRIMARY KEY,
+    filename TEXT NOT NULL,
+    status TEXT NOT NULL,
+    progress REAL NOT NULL DEFAULT 0,
+    error TEXT,
+    options TEXT NOT NULL DEFAULT '{}',
+    created_at REAL NOT NULL,
+    finished_at REAL
+);
+"""
+
+CAMERA_FIELDS = ("name", "source", "sensitivity", "min_area", "method", "show_mask", "active")
+
+
+class Database:
+    def __init__(self, path: Path) -> None:
+        path.parent.mkdir(parents=True, exist_ok=True)
+        self.path = path
+        self._lock = threading.RLock()
+        self._conn = sqlite3.connect(str(path), check_same_thread=False, isolation_level=None)
+        self._conn.row_factory = sqlite3.Row
+        self._conn.execute("PRAGMA journal_mode=WAL")
+        self._conn.execute("PRAGMA synchronous=NORMAL")
+        self._conn.execute("PRAGMA busy_timeout=5000")
+        self._conn.executescript(SCHEMA)
+
+    def close(self) -> None:
+        with self._lock:
+            self._conn.close()
+
+    @property
+    def journal_mode(self) -> str:
+        row = self._query_one("PRAGMA journal_mode")
+        return str(row[0]) if row else ""
+
+    @contextmanager
+    def _tx(self) -> Iterator[sqlite3.Connection]:
+        with self._lock:
+            self._conn.execute("BEGIN IMMEDIATE")
+            try:
+                yield self._conn
+            except BaseException:
+                self._conn.execute("ROLLBACK")
+                raise
+            self._conn.execute("COMMIT")
+
+    def _query(self, sql: str, params: Sequence[Any] = ()) -> list[sqlite3.Row]:
+        with self._lock:
+            return list(self._conn.execute(sql, params))
+
+    def _query_one(self, sql: str, params: Sequence[Any] = ()) -> sqlite3.Row | None:
+        rows = self._query(sql, params)
+        return rows[0] if rows else None
+
+    # Cameras -------------------------------------------------------------------------------
+
+    def add_camera(
+        self, name: str, source: str, method: str, min_area: float, sensitivity: float | None = None
+    ) -> int:
+        with self._tx() as conn:
+            cur = conn.execute(
+                "INSERT INTO cameras (name, source, sensitivity, min_area, method, created_at)"
+                " VALUES (?, ?, ?, ?, ?, ?)",
+                (name, source, sensitivity, min_area, method, time.time()),
+            )
+            return int(cur.lastrowid or 0)
+
+    def cameras(self) -> list[dict[str, Any]]:
+        return [_camera(r) for r in self._query("SELECT * FROM cameras ORDER BY id")]
+
+    def camera(self, camera_id: int) -> dict[str, Any] | None:
+        row = self._query_one("SELECT * FROM cameras WHERE id = ?", (camera_id,))
+        return _camera(row) if row else None
+
+    def update_camera(self, camera_id: int, **fields: Any) -> dict[str, Any] | None:
+        unknown = set(fields) - set(CAMERA_FIELDS)
+        if unknown:
+            raise ValueError(f"unknown camera fields: {sorted(unknown)}")
+        if fields:
+            assignments = ", ".join(f"{k} = ?" for k in fields)
+            with self._tx() as conn:
+                conn.execute(
+                    f"UPDATE cameras SET {assignments} WHERE id = ?",  # noqa: S608
+                    (*fields.values(), camera_id),
+                )
+        return self.camera(camera_id)
+
+    def delete_camera(self, camera_id: int) -> bool:
+        with self._tx() as conn:
+            return conn.execute("DELETE FROM cameras WHERE id = ?", (camera_id,)).rowcount > 0
+
+    # Events --------------------------------------------------------------------------------
+
+    def add_event(
+        self,
+        camera_id: int,
+        started_at: float,
+        boxes: list[list[int]],
+        max_area: float,
+        track_ids: Sequence[int] = (),
+    ) -> int:
+        with self._tx() as conn:
+            cur = conn.execute(
+                "INSERT INTO events (camera_id, started_at, boxes, max_area, track_ids)"
+                " VALUES (?, ?, ?, ?, ?)",
+                (camera_id, started_at, json.dumps(boxes), max_area, json.dumps(list(track_ids))),
+            )
+            return int(cur.lastrowid or 0)
+
+    def end_event(
+        self, event_id: int, ended_at: float, max_area: float, track_ids: Sequence[int] = ()
+    ) -> None:
+        with self._tx() as conn:
+            conn.execute(
+                "UPDATE events SET ended_at = ?, max_area = MAX(max_area, ?),"
+                " track_ids = ? WHERE id = ?",
+                (ended_at, max_area, json.dumps(sorted(track_ids)), event_id),
+            )
+
+    def events(
+        self,
+        camera_id: int | None = None,
+        since: float | None = None,
+        until: float | None = None,
+        limit: int = 200,
+    ) -> list[dict[str, Any]]:
+        where, params = _filters("started_at", camera_id, since, until)
+        rows = self._query(
+            f"SELECT * FROM events {where} ORDER BY started_at DESC, id DESC"  # noqa: S608
+            " LIMIT ?",
+            (*params, limit),
+        )
+        return [_event(r) for r in rows]
+
+    # Snapshots -----------------------------------------------------------------------------
+
+    def add_snapshot(
+        self, camera_id: int, event_id: int | None, ts: float, kind: str, path: str, size: int
+    ) -> int:
+        with self._tx() as conn:
+            cur = conn.execute(
+                "INSERT INTO snapshots (camera_id, event_id, ts, kind, path, size)"
+                " VALUES (?, ?, ?, ?, ?, ?)",
+                (camera_id, event_id, ts, kind, path, size),
+            )
+            return int(cur.lastrowid or 0)
+
+    def snapshots(
+        self,
+        camera_id: int | None = None,
+        since: float | None = None,
+        until: float | None = None,
+        kind: str | None = None,
+        ids: Sequence[int] | None = None,
+        limit: int = 500,
+    ) -> list[dict[str, Any]]:
+        where, params = _filters("ts", camera_id, since, until)
+        clauses = [where[len("WHERE ") :]] if where else []
+        if kind:
+            clauses.append("kind = ?")
+            params.append(kind)
+        if ids is not None:
+            clauses.append(f"id IN ({', '.join('?' for _ in ids) or 'NULL'})")
+            params.extend(ids)
+        sql = "SELECT * FROM snapshots"
+        if clauses:
+            sql += " WHERE " + " AND ".join(clauses)
+        sql += " ORDER BY ts DESC, id DESC LIMIT ?"
+        return [dict(r) for r in self._query(sql, (*params, limit))]
+
+    def snapshot(self, snapshot_id: int) -> dict[str, Any] | None:
+        row = self._query_one("SELECT * FROM snapshots WHERE id = ?", (snapshot_id,))
+        return dict(row) if row else None
+
+    def delete_snapshots(self, ids: Sequence[int]) -> list[dict[str, Any]]:
+        """Remove the rows; returns them so the caller can remove the files."""
+        if not ids:
+            return []
+        rows = self.snapshots(ids=ids, limit=len(ids))
+        with self._tx() as conn:
+            conn.executemany("DELETE FROM snapshots WHERE id = ?", [(r["id"],) for r in rows])
+        return rows
+
+    def delete_events_before(self, before: float) -> int:
+        with self._tx() as conn:
+            return conn.execute(
+                "DELETE FROM events WHERE started_at < ? AND ended_at IS NOT NULL", (before,)
+            ).rowcount
+
+    # Analyses ------------------------------------------------------------------------------
+
+    def add_analysis(self, analysis_id: str, filename: str, options: dict[str, Any]) -> None:
+        with self._tx() as conn:
+            conn.execute(
+                "INSERT INTO analyses (id, filename, status, options, created_at)"
+                " VALUES (?, ?, 'queued', ?, ?)",
+                (analysis_id, filename, json.dumps(options), time.time()),
+            )
+
+    def update_analysis(self, analysis_id: str, **fields: Any) -> None:
+        allowed = {"status", "progress", "error", "finished_at"}
+        if set(fields) - allowed:
+            raise ValueError(f"unknown analysis fields: {sorted(set(fields) - allowed)}")
+        assignments = ", ".join(f"{k} = ?" for k in fields)
+        with self._tx() as conn:
+            conn.execute(
+                f"UPDATE analyses SET {assignments} WHERE id = ?",  # noqa: S608
+                (*fields.values(), analysis_id),
+            )
+
+    def analysis(self, analysis_id: str) -> dict[str, Any] | None:
+        row = self._query_one("SELECT * FROM analyses WHERE id = ?", (analysis_id,))
+        return _analysis(row) if row else None
+
+    def analyses(self, limit: int = 100) -> list[dict[str, Any]]:
+        rows = self._query("SELECT * FROM analyses ORDER BY created_at DESC LIMIT ?", (limit,))
+        return [_analysis(r) for r in rows]
+
+    def fail_unfinished_analyses(self, reason: str) -> int:
+        with self._tx() as conn:
+            return conn.execute(
+                "UPDATE analyses SET status = 'failed', error = ?, finished_at = ?"
+                " WHERE status IN ('queued', 'running')",
+                (reason, time.time()),
+            ).rowcount
+
+
+def _filters(
+    column: str, camera_id: int | None, since: float | None, until: float | None
+) -> tuple[str, list[Any]]:
+    clauses: list[str] = []
+    params: list[Any] = []
+    if camera_id is not None:
+        clauses.append("camera_id = ?")
+        params.append(camera_id)
+    if since is not None:
+        clauses.append(f"{column} >= ?")
+        params.append(since)
+    if until is not None:
+        clauses.append(f"{column} <= ?")
+        params.append(until)
+    return ("WHERE " + " AND ".join(clauses) if clauses else "", params)
+
+
+def _camera(row: sqlite3.Row) -> dict[str, Any]:
+    out = dict(row)
+    out["show_mask"] = bool(out["show_mask"])
+    out["active"] = bool(out["active"])
+    return out
+
+
+def _event(row: sqlite3.Row) -> dict[str, Any]:
+    out = dict(row)
+    out["boxes"] = json.loads(out["boxes"])
+    out["track_ids"] = json.loads(out["track_ids"])
+    return out
+
+
+def _analysis(row: sqlite3.Row) -> dict[str, Any]:
+    out = dict(row)
+    out["options"] = json.loads(out["options"])
+    return out

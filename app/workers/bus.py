@@ -1,0 +1,62 @@
+"""Thread-safe fan-out of JSON messages (alarms, status, progress) to WebSocket clients.
+
+Workers publish from their own threads; each subscriber is an asyncio queue on
+the server's event loop, fed through ``call_soon_threadsafe``. A slow client
+loses its oldest messages, never blocks a worker.
+"""
+
+from __future__ import annotations
+
+import asyncio
+import contextlib
+import threading
+from typing import Any
+
+Message = dict[str, Any]
+Subscriber = asyncio.Queue[Message | None]
+
+
+class EventBus:
+    def __init__(self, queue_size: int = 256) -> None:
+        self.queue_size = queue_size
+        self._lock = threading.Lock()
+        self._subscribers: set[tuple[asyncio.AbstractEventLoop, Subscriber]] = set()
+        self._closed = False
+
+    def subscribe(self) -> asyncio.Queue[Message | None]:
+        queue: asyncio.Queue[Message | None] = asyncio.Queue(self.queue_size)
+        with self._lock:
+            if self._closed:
+                queue.put_nowait(None)
+            self._subscribers.add((asyncio.get_running_loop(), queue))
+        return queue
+
+    def unsubscribe(self, queue: asyncio.Queue[Message | None]) -> None:
+        with self._lock:
+            self._subscribers = {s for s in self._subscribers if s[1] is not queue}
+
+    def publish(self, message: Message) -> None:
+        with self._lock:
+            subscribers = list(self._subscribers)
+        for loop, queue in subscribers:
+            with contextlib.suppress(RuntimeError):  # The loop is closed: nobody listens.
+                loop.call_soon_threadsafe(_put, queue, message)
+
+    def close(self) -> None:
+        """Tell every subscriber to finish (server shutdown)."""
+        with self._lock:
+            self._closed = True
+            subscribers = list(self._subscribers)
+        for loop, queue in subscribers:
+            with contextlib.suppress(RuntimeError):
+                loop.call_soon_threadsafe(_put, queue, None)
+
+
+def _put(queue: asyncio.Queue[Message | None], message: Message | None) -> None:
+    while True:
+        try:
+            queue.put_nowait(message)
+            return
+        except asyncio.QueueFull:
+            with contextlib.suppress(asyncio.QueueEmpty):
+                queue.get_nowait()

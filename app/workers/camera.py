@@ -1,0 +1,356 @@
+"""One thread per camera: read the source, run the engine between Activate and Stop, publish.
+
+States a camera shows: ``connecting`` (first attempt), ``live``,
+``reconnecting`` (a source that was live is lost and being retried, with the
+reason), ``error`` (it never opened: the reason, retried with backoff), and
+``stopped`` (the worker has ended).
+"""
+
+from __future__ import annotations
+
+import logging
+import threading
+import time
+from collections import deque
+from typing import Any, cast
+
+import cv2
+import numpy as np
+
+from app.core.config import Settings
+from app.events.alarm import AlarmLogic, MotionEvent
+from app.sources.live import FrameSource, SourceError, open_source, parse_source
+from app.storage.db import Database
+from app.storage.files import SnapshotStore
+from app.vision.annotate import Annotator
+from app.vision.detections import Detection
+from app.vision.pipeline import FrameResult, Pipeline, PipelineConfig
+from app.vision.types import Image
+from app.workers.bus import EventBus
+from app.workers.hub import EncodeCounter, FrameHub, LiveFrame, encode_jpeg
+
+log = logging.getLogger("vigil.camera")
+
+SETTING_FIELDS = ("sensitivity", "min_area", "method", "show_mask")
+
+
+class CameraWorker:
+    def __init__(
+        self,
+        camera: dict[str, Any],
+        settings: Settings,
+        db: Database,
+        snapshots: SnapshotStore,
+        bus: EventBus,
+    ) -> None:
+        self.camera_id: int = camera["id"]
+        self.name: str = camera["name"]
+        self.source_text: str = camera["source"]
+        self.settings = settings
+        self.db = db
+        self.snapshots = snapshots
+        self.bus = bus
+        self.hub = FrameHub()
+        self.encodes = EncodeCounter()
+        self._config: dict[str, Any] = {k: camera[k] for k in SETTING_FIELDS}
+        self._want_active: bool = bool(camera.get("active"))
+        self._pending: dict[str, Any] = {}
+        self._lock = threading.Lock()
+        self._stop = threading.Event()
+        self._thread = threading.Thread(
+            target=self._run, name=f"camera-{self.camera_id}", daemon=True
+        )
+        self.state = "connecting"
+        self.reason = ""
+        self.fps = 0.0
+        self.source_fps: float | None = None
+        self.frames = 0
+        self.processed = 0
+        self.objects = 0
+        self.motion = 0.0
+        self.threshold: float | None = None
+        self.last_alarm: float | None = None
+        self._times: deque[float] = deque(maxlen=64)
+        self._pipeline: Pipeline | None = None
+        self._alarms: AlarmLogic | None = None
+        self._event_rows: dict[int, int] = {}
+        self._activated_at = 0.0
+        self._last_status = 0.0
+        self._source: FrameSource | None = None
+        self._was_live = False
+
+    # Control, from any thread -------------------------------------------------------------
+
+    def start(self) -> None:
+        self._thread.start()
+
+    def request_stop(self) -> None:
+        self._stop.set()
+        self.hub.close()
+
+    def join(self, timeout: float) -> bool:
+        self._thread.join(timeout)
+        return not self._thread.is_alive()
+
+    @property
+    def active(self) -> bool:
+        return self._want_active
+
+    def set_active(self, active: bool) -> None:
+        with self._lock:
+            self._want_active = active
+        self._publish_status(force=True)
+
+    def update(self, **changes: Any) -> None:
+        """New settings; the worker applies them before its next frame."""
+        with self._lock:
+            self._pending.update({k: v for k, v in changes.items() if k in SETTING_FIELDS})
+
+    def status(self) -> dict[str, Any]:
+        return {
+            "camera_id": self.camera_id,
+            "state": self.state,
+            "reason": self.reason,
+            "fps": round(self.fps, 2),
+            "source_fps": self.source_fps,
+            "active": self._want_active,
+            "frames": self.frames,
+            "viewers": self.hub.viewers,
+            "processed": self.processed,
+            "objects": self.objects,
+            "motion": round(self.motion, 5),
+            "threshold": None if self.threshold is None else round(self.threshold, 1),
+            "last_alarm": self.last_alarm,
+        }
+
+    # The thread ---------------------------------------------------------------------------
+
+    def _run(self) -> None:
+        backoff = self.settings.reconnect_min_s
+        try:
+            while not self._stop.is_set():
+                try:
+                    spec = parse_source(self.source_text)
+                    source = open_source(
+                        spec, self.settings.open_timeout_ms, self.settings.read_timeout_ms
+                    )
+                except (SourceError, ValueError) as exc:
+                    self._failed(str(exc), backoff)
+                    backoff = min(backoff * 2, self.settings.reconnect_max_s)
+                    continue
+                except Exception as exc:  # An OpenCV or OS error: show it, retry.
+                    log.exception("camera %s: cannot open %s", self.camera_id, self.source_text)
+                    self._failed(f"cannot open source: {exc}", backoff)
+                    backoff = min(backoff * 2, self.settings.reconnect_max_s)
+                    continue
+                self._source = source
+                try:
+                    self._stream(source)
+                    backoff = self.settings.reconnect_min_s
+                except SourceError as exc:
+                    # An open event ends with the picture; detection starts afresh on return.
+                    self._deactivate(time.time())
+                    backoff = self.settings.reconnect_min_s
+                    self._lost(str(exc), backoff)
+                except Exception as exc:
+                    log.exception("camera %s failed", self.camera_id)
+                    self._deactivate(time.time())  # E.g. a new frame size: a fresh model.
+                    self._lost(f"worker error: {exc}", backoff)
+                    backoff = min(backoff * 2, self.settings.reconnect_max_s)
+                finally:
+                    self._source = None
+                    source.close()
+        finally:
+            self._deactivate(time.time())
+            self._set_state("stopped", "")
+
+    def _failed(self, reason: str, wait_s: float) -> None:
+        state = "reconnecting" if self._was_live else "error"
+        self._set_state(state, f"{reason}; retrying in {wait_s:.1f} s")
+        self._stop.wait(wait_s)
+
+    def _lost(self, reason: str, wait_s: float) -> None:
+        self._set_state("reconnecting", reason)
+        self._stop.wait(wait_s)
+
+    def _stream(self, source: FrameSource) -> None:
+        self.source_fps = round(source.fps, 3)
+        period = 1.0 / source.fps if source.paced and source.fps > 0 else 0.0
+        due = time.monotonic()
+        first = True
+        while not self._stop.is_set():
+            if period:
+                delay = due - time.monotonic()
+                if delay > 0 and self._stop.wait(delay):
+                    return
+                due = max(due + period, time.monotonic() - 1.0)  # Catch up at most a second.
+            frame = source.read()
+            if first:
+                self._was_live = True
+                self._set_state("live", "")
+                first = False
+            self._handle(frame)
+
+    def _handle(self, frame: Image) -> None:
+        now_mono = time.monotonic()
+        now = time.time()
+        self._apply_pending(now, getattr(self._source, "fps", 25.0))
+        self.frames += 1
+        self._times.append(now_mono)
+        if len(self._times) >= 2 and self._times[-1] > self._times[0]:
+            self.fps = (len(self._times) - 1) / (self._times[-1] - self._times[0])
+        live = LiveFrame(
+            self.frames, now, frame, quality=self.settings.jpeg_quality, counter=self.encodes
+        )
+        pipeline, alarms = self._pipeline, self._alarms
+        if pipeline is not None and alarms is not None:
+            result = pipeline.process(frame, now_mono - self._activated_at)
+            self.processed += 1
+            live.detections = result.detections
+            live.trails = pipeline.tracker.trails()
+            live.gray, live.stats = result.gray, result.stats
+            if self._config.get("show_mask"):
+                live.mask = result.mask
+            self.objects = len(result.detections)
+            self.threshold = result.threshold
+            self.motion = float(sum(d.area for d in result.detections)) / (
+                frame.shape[0] * frame.shape[1]
+            )
+            update = alarms.update(result.index, result.time_s, result.detections)
+            if update.started is not None:
+                self._alarm(update.started, live, result, now)
+            if update.ended is not None:
+                self._motion_end(update.ended, now)
+        self.hub.publish(live)
+        if now_mono - self._last_status >= self.settings.status_interval_s:
+            self._publish_status()
+
+    def _apply_pending(self, now: float, fps: float) -> None:
+        with self._lock:
+            pending, self._pending = self._pending, {}
+            want_active = self._want_active
+        old = dict(self._config)
+        self._config.update(pending)
+        if want_active and self._pipeline is None:
+            self._pipeline = self._new_pipeline(fps)
+            self._alarms = AlarmLogic(self.settings.quiet_s)
+            self._activated_at = time.monotonic()
+        elif not want_active and self._pipeline is not None:
+            self._deactivate(now)
+        pipeline = self._pipeline
+        if pipeline is None or not pending:
+            return
+        if self._config["method"] != old["method"]:
+            try:
+                self._pipeline = self._new_pipeline(fps)
+            except ValueError:
+                log.exception("camera %s: keeping method %s", self.camera_id, old["method"])
+                self._config = old
+                return
+            self._pipeline._index = pipeline._index  # Keep frame numbers counting up.
+            return
+        if self._config["sensitivity"] != old["sensitivity"]:
+            pipeline.set_sensitivity(self._config["sensitivity"])
+        if self._config["min_area"] != old["min_area"]:
+            pipeline.set_min_area(float(self._config["min_area"]))
+
+    def _new_pipeline(self, fps: float) -> Pipeline:
+        config = PipelineConfig(
+            method=self._config["method"],
+            sensitivity=self._config["sensitivity"],
+            min_area=float(self._config["min_area"]),
+        )
+        return Pipeline(config, fps)
+
+    def _deactivate(self, now: float) -> None:
+        if self._alarms is not None:
+            ended = self._alarms.finish()
+            if ended is not None:
+                self._motion_end(ended, now)
+        self._pipeline = None
+        self._alarms = None
+        self.objects = 0
+        self.motion = 0.0
+        self.threshold = None
+
+    # Alarms -------------------------------------------------------------------------------
+
+    def _alarm(self, event: MotionEvent, live: LiveFrame, result: FrameResult, now: float) -> None:
+        detections: list[Detection] = list(result.detections)
+        boxes = [d.box.as_list() for d in detections]
+        picture = Annotator()(live.frame, detections, live.trails)
+        source = cast(Any, result.difference)
+        difference = cv2.normalize(source, np.zeros_like(source), 0, 255, cv2.NORM_MINMAX)
+        height, width = live.frame.shape[:2]
+        if difference.shape[:2] != (height, width):
+            difference = cv2.resize(difference, (width, height), interpolation=cv2.INTER_NEAREST)
+        track_ids = sorted(d.track_id for d in detections if d.track_id is not None)
+        event_id = self.db.add_event(self.camera_id, now, boxes, event.max_area, track_ids)
+        self._event_rows[event.id] = event_id
+        ids: dict[str, int] = {}
+        for kind, image in (("frame", picture), ("difference", difference)):
+            data = encode_jpeg(image, 90)
+            relative = self.snapshots.save(self.camera_id, now, kind, data, event_id)
+            ids[kind] = self.db.add_snapshot(
+                self.camera_id, event_id, now, kind, relative, len(data)
+            )
+        self.last_alarm = now
+        self.bus.publish(
+            {
+                "type": "alarm",
+                "camera_id": self.camera_id,
+                "camera_name": self.name,
+                "event_id": event_id,
+                "ts": now,
+                "frame": result.index,
+                "boxes": boxes,
+                "objects": [_detection(d) for d in detections],
+                "snapshot": f"/api/snapshots/{ids['frame']}.jpg",
+                "snapshot_id": ids["frame"],
+                "difference": f"/api/snapshots/{ids['difference']}.jpg",
+            }
+        )
+
+    def _motion_end(self, event: MotionEvent, now: float) -> None:
+        event_id = self._event_rows.pop(event.id, None)
+        if event_id is None:
+            return
+        self.db.end_event(event_id, now, event.max_area, sorted(event.track_ids))
+        self.bus.publish(
+            {
+                "type": "motion_end",
+                "camera_id": self.camera_id,
+                "event_id": event_id,
+                "ts": now,
+                "duration_s": round(event.end_time_s - event.start_time_s, 3),
+                "max_area": round(event.max_area, 1),
+            }
+        )
+
+    # Status -------------------------------------------------------------------------------
+
+    def _set_state(self, state: str, reason: str) -> None:
+        changed = (state, reason) != (self.state, self.reason)
+        self.state, self.reason = state, reason
+        if state != "live":
+            self.fps = 0.0
+            self._times.clear()
+        if changed:
+            if state in ("error", "reconnecting"):
+                log.warning("camera %s %s: %s", self.camera_id, state, reason)
+            self._publish_status(force=True)
+
+    def _publish_status(self, force: bool = False) -> None:
+        self._last_status = time.monotonic()
+        message = {"type": "status", **self.status()}
+        self.bus.publish(message)
+
+
+def _detection(d: Detection) -> dict[str, Any]:
+    return {
+        "track_id": d.track_id,
+        "box": d.box.as_list(),
+        "area": round(d.area, 1),
+        "speed_px_s": round(d.speed_px_s, 2),
+        "distance_px": round(d.distance_px, 2),
+    }

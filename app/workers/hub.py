@@ -1,0 +1,148 @@
+"""The latest frame of a camera, and waiting for the next one from async code.
+
+A worker publishes a ``LiveFrame`` per decoded frame: the raw picture and what
+was found in it. Nothing is drawn or encoded then. The first viewer that wants
+a frame's JPEG draws and encodes it, and every other viewer gets those bytes:
+one encode per frame whatever the number of viewers, none without viewers.
+"""
+
+from __future__ import annotations
+
+import asyncio
+import contextlib
+import threading
+import time
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass, field
+from typing import cast
+
+import cv2
+import numpy as np
+
+from app.vision.annotate import Annotator, overlay_mask
+from app.vision.detections import Detection
+from app.vision.histogram import GreyStats, grey_histogram, grey_stats, render_histogram
+from app.vision.types import GrayImage, Image, Mask
+
+_ANNOTATOR = Annotator()
+
+
+class EncodeCounter:
+    """How many JPEGs a worker encoded (for tests and the benchmark)."""
+
+    def __init__(self) -> None:
+        self.frames = 0
+        self.histograms = 0
+
+
+@dataclass(eq=False)
+class LiveFrame:
+    seq: int
+    ts: float
+    frame: Image
+    detections: Sequence[Detection] = ()
+    trails: Mapping[int, Sequence[tuple[float, float]]] | None = None
+    mask: Mask | None = None
+    gray: GrayImage | None = None
+    stats: GreyStats | None = None
+    quality: int = 80
+    counter: EncodeCounter | None = None
+    _lock: threading.Lock = field(default_factory=threading.Lock, repr=False)
+    _jpeg: bytes | None = None
+    _histogram: bytes | None = None
+
+    def annotated(self) -> Image:
+        picture = self.frame
+        if self.mask is not None:
+            picture = overlay_mask(picture, self.mask)
+        if self.detections or self.trails:
+            picture = _ANNOTATOR(picture, self.detections, self.trails)
+        return picture
+
+    def jpeg(self) -> bytes:
+        with self._lock:
+            if self._jpeg is None:
+                self._jpeg = encode_jpeg(self.annotated(), self.quality)
+                if self.counter is not None:
+                    self.counter.frames += 1
+            return self._jpeg
+
+    def histogram_jpeg(self) -> bytes:
+        with self._lock:
+            if self._histogram is None:
+                gray: GrayImage
+                if self.gray is not None:
+                    gray = self.gray
+                elif self.frame.ndim == 2:
+                    gray = self.frame
+                else:
+                    gray = cast(GrayImage, cv2.cvtColor(self.frame, cv2.COLOR_BGR2GRAY))
+                stats = self.stats or grey_stats(gray)
+                picture = render_histogram(grey_histogram(gray), stats, 256, 120)
+                self._histogram = encode_jpeg(picture, 85)
+                if self.counter is not None:
+                    self.counter.histograms += 1
+            return self._histogram
+
+
+def encode_jpeg(image: Image | np.ndarray, quality: int = 80) -> bytes:
+    ok, buffer = cv2.imencode(".jpg", image, [cv2.IMWRITE_JPEG_QUALITY, quality])
+    if not ok:
+        raise RuntimeError("JPEG encoding failed")
+    return buffer.tobytes()
+
+
+class FrameHub:
+    """Holds the newest LiveFrame; async viewers wait for one newer than what they have."""
+
+    def __init__(self) -> None:
+        self._lock = threading.Lock()
+        self._latest: LiveFrame | None = None
+        self._waiters: set[tuple[asyncio.AbstractEventLoop, asyncio.Event]] = set()
+        self.viewers = 0
+        self.closed = False
+
+    @property
+    def latest(self) -> LiveFrame | None:
+        return self._latest
+
+    def publish(self, item: LiveFrame) -> None:
+        with self._lock:
+            self._latest = item
+            waiters = list(self._waiters)
+        for loop, event in waiters:
+            with contextlib.suppress(RuntimeError):
+                loop.call_soon_threadsafe(event.set)
+
+    def close(self) -> None:
+        """Wake every waiting viewer with None (the camera is going away)."""
+        with self._lock:
+            self.closed = True
+            waiters = list(self._waiters)
+        for loop, event in waiters:
+            with contextlib.suppress(RuntimeError):
+                loop.call_soon_threadsafe(event.set)
+
+    async def next(self, after_seq: int, timeout: float) -> LiveFrame | None:
+        """A frame newer than ``after_seq``, or None after ``timeout`` seconds."""
+        event = asyncio.Event()
+        key = (asyncio.get_running_loop(), event)
+        with self._lock:
+            self._waiters.add(key)
+        try:
+            deadline = time.monotonic() + timeout
+            while True:
+                event.clear()
+                if self.closed:
+                    return None
+                latest = self._latest
+                if latest is not None and latest.seq > after_seq:
+                    return latest
+                remaining = deadline - time.monotonic()
+                if remaining <= 0:
+                    return None
+                with contextlib.suppress(TimeoutError):
+                    await asyncio.wait_for(event.wait(), remaining)
+        finally:
+            with self._lock:
+                self._waiters.discard(key)

@@ -1,0 +1,201 @@
+"""Uploaded videos: analysed in a separate process, followed live, downloaded when done."""
+
+from __future__ import annotations
+
+import asyncio
+import json
+import re
+import shutil
+import uuid
+from collections.abc import AsyncIterator
+from pathlib import Path
+from typing import Any, BinaryIO
+
+from fastapi import APIRouter, Form, HTTPException, Request, UploadFile
+from fastapi.responses import FileResponse, JSONResponse, StreamingResponse
+
+from app.api.routes.streams import MJPEG_TYPE, NO_CACHE, mjpeg_part
+from app.api.services import Services, services
+from app.vision.motion import METHODS
+from app.workers.analysis_child import LIVE_FRAME
+
+router = APIRouter(prefix="/api/analyses", tags=["analyses"])
+
+FINISHED = ("done", "failed")
+
+
+class UploadTooLargeError(Exception):
+    pass
+
+
+def _copy_limited(source: BinaryIO, target: Path, limit: int) -> int:
+    written = 0
+    with target.open("wb") as out:
+        while block := source.read(1 << 20):
+            written += len(block)
+            if written > limit:
+                raise UploadTooLargeError
+            out.write(block)
+    return written
+
+
+@router.post("", status_code=202)
+async def upload(
+    request: Request,
+    file: UploadFile,
+    method: str | None = Form(None),
+    sensitivity: float | None = Form(None),
+    min_area: float | None = Form(None),
+) -> dict[str, Any]:
+    """Upload a video (multipart field ``file``); it is analysed in the background."""
+    svc = services(request)
+    limit = svc.settings.max_upload_mb * 1024 * 1024
+    if method is not None and method != "" and method not in METHODS:
+        raise HTTPException(422, f"unknown method {method!r}; choose from {', '.join(METHODS)}")
+    if sensitivity is not None and not 1 <= sensitivity <= 255:
+        raise HTTPException(422, "sensitivity must be between 1 and 255 grey levels")
+    if min_area is not None and min_area < 0:
+        raise HTTPException(422, "min_area must not be negative")
+    analysis_id = uuid.uuid4().hex[:12]
+    folder = svc.analyses.folder(analysis_id)
+    folder.mkdir(parents=True, exist_ok=True)
+    filename = Path(file.filename or "upload").name[:200] or "upload"
+    suffix = Path(filename).suffix.lower()
+    if not re.fullmatch(r"\.[a-z0-9]{1,5}", suffix):
+        suffix = ".bin"
+    try:
+        size = await asyncio.to_thread(_copy_limited, file.file, folder / f"input{suffix}", limit)
+    except UploadTooLargeError:
+        shutil.rmtree(folder, ignore_errors=True)
+        raise HTTPException(413, f"upload larger than {svc.settings.max_upload_mb} MB") from None
+    if size == 0:
+        shutil.rmtree(folder, ignore_errors=True)
+        raise HTTPException(422, "the uploaded file is empty")
+    options = {"method": method or None, "sensitivity": sensitivity, "min_area": min_area}
+    svc.database.add_analysis(analysis_id, filename, options)
+    svc.analyses.submit(analysis_id)
+    svc.bus.publish({"type": "status", "analysis_id": analysis_id, "status": "queued"})
+    return {"id": analysis_id, "url": f"/api/analyses/{analysis_id}"}
+
+
+def _view(svc: Services, row: dict[str, Any], full: bool) -> dict[str, Any]:
+    analysis_id = row["id"]
+    base = f"/api/analyses/{analysis_id}"
+    progress = row["progress"]
+    if row["status"] == "running":
+        progress = svc.analyses.progress.get(analysis_id, progress)
+    out: dict[str, Any] = {
+        "id": analysis_id,
+        "filename": row["filename"],
+        "status": row["status"],
+        "progress": round(float(progress), 4),
+        "error": row["error"],
+        "options": row["options"],
+        "created_at": row["created_at"],
+        "finished_at": row["finished_at"],
+        "links": {
+            "self": base,
+            "stream": f"{base}/stream.mjpg",
+            "tracks": f"{base}/tracks.csv",
+            "annotated": f"{base}/annotated.avi",
+            "report": f"{base}/report.json",
+            "report_html": f"{base}/report.html",
+        },
+        "report": None,
+    }
+    if full and row["status"] == "done":
+        report_path = svc.analyses.folder(analysis_id) / "out" / "report.json"
+        if report_path.is_file():
+            out["report"] = json.loads(report_path.read_text())
+    return out
+
+
+def _row_or_404(svc: Services, analysis_id: str) -> dict[str, Any]:
+    if not re.fullmatch(r"[0-9a-f]{1,32}", analysis_id):
+        raise HTTPException(404, f"no analysis {analysis_id}")
+    row = svc.database.analysis(analysis_id)
+    if row is None:
+        raise HTTPException(404, f"no analysis {analysis_id}")
+    return row
+
+
+@router.get("")
+def list_analyses(request: Request) -> list[dict[str, Any]]:
+    svc = services(request)
+    return [_view(svc, row, False) for row in svc.database.analyses()]
+
+
+@router.get("/{analysis_id}")
+def get_analysis(request: Request, analysis_id: str) -> dict[str, Any]:
+    """Status (queued, running, done, failed), progress 0..1, the report when done, the error."""
+    svc = services(request)
+    return _view(svc, _row_or_404(svc, analysis_id), True)
+
+
+def _output(request: Request, analysis_id: str, name: str) -> Path:
+    svc = services(request)
+    row = _row_or_404(svc, analysis_id)
+    path = svc.analyses.folder(analysis_id) / "out" / name
+    if row["status"] != "done" or not path.is_file():
+        raise HTTPException(404, f"{name} is not ready: the analysis is {row['status']}")
+    return path
+
+
+@router.get("/{analysis_id}/tracks.csv")
+def tracks(request: Request, analysis_id: str) -> FileResponse:
+    return FileResponse(
+        _output(request, analysis_id, "tracks.csv"),
+        media_type="text/csv",
+        filename=f"tracks-{analysis_id}.csv",
+    )
+
+
+@router.get("/{analysis_id}/annotated.avi")
+def annotated(request: Request, analysis_id: str) -> FileResponse:
+    return FileResponse(
+        _output(request, analysis_id, "annotated.avi"),
+        media_type="video/x-msvideo",
+        filename=f"annotated-{analysis_id}.avi",
+    )
+
+
+@router.get("/{analysis_id}/report.json")
+def report(request: Request, analysis_id: str) -> JSONResponse:
+    path = _output(request, analysis_id, "report.json")
+    return JSONResponse(json.loads(path.read_text()))
+
+
+@router.get("/{analysis_id}/report.html")
+def report_html(request: Request, analysis_id: str) -> FileResponse:
+    return FileResponse(_output(request, analysis_id, "report.html"), media_type="text/html")
+
+
+@router.get("/{analysis_id}/stream.mjpg")
+def stream(request: Request, analysis_id: str) -> StreamingResponse:
+    """Annotated frames while the analysis runs; ends with its last frame."""
+    svc = services(request)
+    _row_or_404(svc, analysis_id)
+    live = svc.analyses.folder(analysis_id) / "out" / LIVE_FRAME
+    return StreamingResponse(
+        _follow(request, svc, analysis_id, live), media_type=MJPEG_TYPE, headers=NO_CACHE
+    )
+
+
+async def _follow(
+    request: Request, svc: Services, analysis_id: str, live: Path
+) -> AsyncIterator[bytes]:
+    last_mtime = 0
+    while not svc.closing:
+        row = svc.database.analysis(analysis_id)
+        finished = row is None or row["status"] in FINISHED
+        try:
+            mtime = live.stat().st_mtime_ns
+            if mtime != last_mtime:
+                data = live.read_bytes()
+                last_mtime = mtime
+                yield mjpeg_part(data)
+        except OSError:
+            pass
+        if finished or await request.is_disconnected():
+            return
+        await asyncio.sleep(0.1)

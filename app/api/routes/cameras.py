@@ -1,0 +1,137 @@
+"""Cameras: list, add, change, remove, Activate and Stop."""
+
+from __future__ import annotations
+
+from typing import Any
+
+from fastapi import APIRouter, HTTPException, Request, Response
+from pydantic import BaseModel, Field, field_validator
+
+from app.api.services import services
+from app.sources.live import parse_source
+from app.vision.motion import DEFAULT_METHOD, METHODS
+
+router = APIRouter(prefix="/api/cameras", tags=["cameras"])
+
+
+def _check_method(value: str | None) -> str | None:
+    if value is not None and value not in METHODS:
+        raise ValueError(f"unknown method {value!r}; choose from {', '.join(METHODS)}")
+    return value
+
+
+def _check_source(value: str | None) -> str | None:
+    if value is not None:
+        parse_source(value)
+        return value.strip()
+    return value
+
+
+class CameraIn(BaseModel):
+    name: str = Field(min_length=1, max_length=100)
+    source: str = Field(min_length=1, max_length=2000)
+    sensitivity: float | None = Field(default=None, ge=1, le=255)
+    """Grey-level threshold 1..255, lower = more sensitive; null = automatic."""
+    min_area: float | None = Field(default=None, ge=0)
+    method: str | None = None
+
+    _method = field_validator("method")(_check_method)
+    _source = field_validator("source")(_check_source)
+
+
+class CameraPatch(BaseModel):
+    name: str | None = Field(default=None, min_length=1, max_length=100)
+    source: str | None = Field(default=None, min_length=1, max_length=2000)
+    sensitivity: float | None = Field(default=None, ge=1, le=255)
+    min_area: float | None = Field(default=None, ge=0)
+    method: str | None = None
+    show_mask: bool | None = None
+
+    _method = field_validator("method")(_check_method)
+    _source = field_validator("source")(_check_source)
+
+
+def _camera_or_404(request: Request, camera_id: int) -> dict[str, Any]:
+    camera = services(request).database.camera(camera_id)
+    if camera is None:
+        raise HTTPException(404, f"no camera {camera_id}")
+    return camera
+
+
+@router.get("")
+def list_cameras(request: Request) -> list[dict[str, Any]]:
+    svc = services(request)
+    return [svc.camera_view(c) for c in svc.database.cameras()]
+
+
+@router.post("")
+def add_camera(request: Request, body: CameraIn) -> dict[str, Any]:
+    svc = services(request)
+    camera_id = svc.database.add_camera(
+        body.name,
+        body.source,
+        body.method or DEFAULT_METHOD,
+        svc.settings.default_min_area if body.min_area is None else body.min_area,
+        body.sensitivity,
+    )
+    camera = svc.database.camera(camera_id)
+    assert camera is not None
+    svc.cameras.start(camera)
+    return {"id": camera_id}
+
+
+@router.get("/{camera_id}")
+def get_camera(request: Request, camera_id: int) -> dict[str, Any]:
+    return services(request).camera_view(_camera_or_404(request, camera_id))
+
+
+@router.patch("/{camera_id}")
+def change_camera(request: Request, camera_id: int, body: CameraPatch) -> dict[str, Any]:
+    svc = services(request)
+    before = _camera_or_404(request, camera_id)
+    changes = {k: getattr(body, k) for k in body.model_fields_set}
+    for key in ("name", "source", "min_area", "method", "show_mask"):
+        if key in changes and changes[key] is None:
+            raise HTTPException(422, f"{key} cannot be null")
+    camera = svc.database.update_camera(camera_id, **changes)
+    if camera is None:
+        raise HTTPException(404, f"no camera {camera_id}")
+    worker = svc.cameras.get(camera_id)
+    if worker is None or ("source" in changes and changes["source"] != before["source"]):
+        svc.cameras.restart(camera)
+    else:
+        worker.name = camera["name"]
+        worker.update(**changes)
+    return svc.camera_view(camera)
+
+
+@router.delete("/{camera_id}", status_code=204)
+def delete_camera(request: Request, camera_id: int) -> Response:
+    svc = services(request)
+    _camera_or_404(request, camera_id)
+    svc.cameras.remove(camera_id)
+    svc.database.delete_camera(camera_id)
+    return Response(status_code=204)
+
+
+def _set_active(request: Request, camera_id: int, active: bool) -> dict[str, Any]:
+    svc = services(request)
+    _camera_or_404(request, camera_id)
+    camera = svc.database.update_camera(camera_id, active=int(active))
+    assert camera is not None
+    worker = svc.cameras.get(camera_id)
+    if worker is not None:
+        worker.set_active(active)
+    return svc.camera_view(camera)
+
+
+@router.post("/{camera_id}/activate")
+def activate(request: Request, camera_id: int) -> dict[str, Any]:
+    """Start detecting (the paper's Activate trigger): alarms from the next frame."""
+    return _set_active(request, camera_id, True)
+
+
+@router.post("/{camera_id}/stop")
+def stop(request: Request, camera_id: int) -> dict[str, Any]:
+    """Stop detecting; the live picture goes on. An open event ends (``motion_end``)."""
+    return _set_active(request, camera_id, False)

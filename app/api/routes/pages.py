@@ -1,0 +1,33 @@
+"""The dashboard page."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+from fastapi import APIRouter, Request
+from fastapi.responses import HTMLResponse
+from fastapi.templating import Jinja2Templates
+
+import app as vigil_package
+from app.api.services import services
+from app.vision.motion import DEFAULT_METHOD, METHODS
+
+router = APIRouter()
+TEMPLATES = Jinja2Templates(
+    directory=str(Path(vigil_package.__file__).resolve().parent.parent / "templates")
+)
+
+
+@router.get("/", response_class=HTMLResponse, include_in_schema=False)
+def dashboard(request: Request) -> HTMLResponse:
+    svc = services(request)
+    return TEMPLATES.TemplateResponse(
+        request,
+        "index.html",
+        {
+            "version": vigil_package.__version__,
+            "methods": list(METHODS),
+            "default_method": DEFAULT_METHOD,
+            "max_upload_mb": svc.settings.max_upload_mb,
+        },
+    )

@@ -1,0 +1,116 @@
+"""The snapshot gallery: listing with filters, single pictures, bulk delete, streamed zip."""
+
+from __future__ import annotations
+
+import time
+from collections.abc import Iterator
+from pathlib import Path
+from typing import Any
+
+from fastapi import APIRouter, HTTPException, Query, Request
+from fastapi.responses import FileResponse, StreamingResponse
+from pydantic import BaseModel, Field
+
+from app.api.services import Services, services
+from app.storage.files import stream_zip
+
+router = APIRouter(prefix="/api", tags=["snapshots"])
+
+
+def _view(row: dict[str, Any]) -> dict[str, Any]:
+    out = {k: v for k, v in row.items() if k != "path"}
+    out["url"] = f"/api/snapshots/{row['id']}.jpg"
+    return out
+
+
+def _ids(text: str | None) -> list[int] | None:
+    if text is None or text == "":
+        return None
+    try:
+        return [int(part) for part in text.split(",") if part.strip()]
+    except ValueError:
+        raise HTTPException(422, "ids must be a comma-separated list of numbers") from None
+
+
+@router.get("/snapshots")
+def list_snapshots(
+    request: Request,
+    camera_id: int | None = None,
+    since: float | None = None,
+    until: float | None = None,
+    kind: str | None = None,
+    limit: int = Query(500, ge=1, le=10000),
+) -> list[dict[str, Any]]:
+    """Snapshots, newest first; ``kind`` is ``frame`` or ``difference``; times are Unix seconds."""
+    rows = services(request).database.snapshots(camera_id, since, until, kind, limit=limit)
+    return [_view(r) for r in rows]
+
+
+@router.get("/snapshots.zip")
+def snapshots_zip(
+    request: Request,
+    camera_id: int | None = None,
+    since: float | None = None,
+    until: float | None = None,
+    kind: str | None = None,
+    ids: str | None = None,
+    limit: int = Query(10000, ge=1, le=100000),
+) -> StreamingResponse:
+    """The selected snapshots as one zip, streamed as it is made."""
+    svc = services(request)
+    rows = svc.database.snapshots(camera_id, since, until, kind, _ids(ids), limit)
+    stamp = time.strftime("%Y%m%d-%H%M%S", time.gmtime())
+    return StreamingResponse(
+        _zip_entries(svc, rows),
+        media_type="application/zip",
+        headers={"Content-Disposition": f'attachment; filename="vigil-snapshots-{stamp}.zip"'},
+    )
+
+
+def _zip_entries(svc: Services, rows: list[dict[str, Any]]) -> Iterator[bytes]:
+    def files() -> Iterator[tuple[Path, str]]:
+        for row in rows:
+            try:
+                path = svc.snapshots.path(row["path"])
+            except ValueError:
+                continue
+            yield path, f"camera-{row['camera_id']}/{row['id']:06d}-{path.name}"
+
+    return stream_zip(files())
+
+
+@router.get("/snapshots/{snapshot_id}.jpg")
+def snapshot_file(request: Request, snapshot_id: int) -> FileResponse:
+    svc = services(request)
+    row = svc.database.snapshot(snapshot_id)
+    if row is None:
+        raise HTTPException(404, f"no snapshot {snapshot_id}")
+    path = svc.snapshots.path(row["path"])
+    if not path.is_file():
+        raise HTTPException(404, f"snapshot {snapshot_id} file is missing")
+    return FileResponse(path, media_type="image/jpeg")
+
+
+class DeleteRequest(BaseModel):
+    ids: list[int] = Field(min_length=1, max_length=100000)
+
+
+def _delete(svc: Services, ids: list[int]) -> dict[str, Any]:
+    rows = svc.database.delete_snapshots(ids)
+    for row in rows:
+        svc.snapshots.delete(row["path"])
+    return {"deleted": [r["id"] for r in rows]}
+
+
+@router.post("/snapshots/delete")
+def delete_snapshots(request: Request, body: DeleteRequest) -> dict[str, Any]:
+    """Bulk delete (the gallery's selection)."""
+    return _delete(services(request), body.ids)
+
+
+@router.delete("/snapshots/{snapshot_id}")
+def delete_snapshot(request: Request, snapshot_id: int) -> dict[str, Any]:
+    result = _delete(services(request), [snapshot_id])
+    if not result["deleted"]:
+        raise HTTPException(404, f"no snapshot {snapshot_id}")
+    return result

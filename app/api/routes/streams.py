@@ -1,0 +1,92 @@
+"""Live pictures: MJPEG streams, and single frames for pages with many cameras."""
+
+from __future__ import annotations
+
+import asyncio
+from collections.abc import AsyncIterator
+
+from fastapi import APIRouter, HTTPException, Request, Response
+from fastapi.responses import StreamingResponse
+
+from app.api.services import services, worker_or_404
+from app.workers.camera import CameraWorker
+from app.workers.hub import LiveFrame
+
+router = APIRouter(prefix="/api/cameras", tags=["streams"])
+
+BOUNDARY = "frame"
+MJPEG_TYPE = f"multipart/x-mixed-replace; boundary={BOUNDARY}"
+NO_CACHE = {"Cache-Control": "no-store, no-cache, must-revalidate", "Pragma": "no-cache"}
+
+
+def mjpeg_part(data: bytes) -> bytes:
+    head = (
+        f"--{BOUNDARY}\r\nContent-Type: image/jpeg\r\nContent-Length: {len(data)}\r\n\r\n"
+    ).encode()
+    return head + data + b"\r\n"
+
+
+async def _frames(request: Request, worker: CameraWorker, histogram: bool) -> AsyncIterator[bytes]:
+    svc = services(request)
+    hub = worker.hub
+    hub.viewers += 1
+    seq = 0
+    try:
+        while not svc.closing and not hub.closed:
+            item = await hub.next(seq, 1.0)
+            if await request.is_disconnected():
+                return
+            if item is None:
+                continue
+            seq = item.seq
+            encode = item.histogram_jpeg if histogram else item.jpeg
+            data = await asyncio.to_thread(encode)
+            yield mjpeg_part(data)
+    finally:
+        hub.viewers -= 1
+
+
+@router.get("/{camera_id}/stream.mjpg")
+async def stream(request: Request, camera_id: int) -> StreamingResponse:
+    """Annotated frames (boxes, track ids, trails; the motion mask when show_mask is on)."""
+    worker = worker_or_404(request, camera_id)
+    return StreamingResponse(
+        _frames(request, worker, False), media_type=MJPEG_TYPE, headers=NO_CACHE
+    )
+
+
+@router.get("/{camera_id}/histogram.mjpg")
+async def histogram_stream(request: Request, camera_id: int) -> StreamingResponse:
+    """The grey-level histogram of each frame, drawn as a picture."""
+    worker = worker_or_404(request, camera_id)
+    return StreamingResponse(
+        _frames(request, worker, True), media_type=MJPEG_TYPE, headers=NO_CACHE
+    )
+
+
+async def _latest(worker: CameraWorker) -> LiveFrame:
+    item = worker.hub.latest
+    if item is None and worker.state in ("connecting", "live"):
+        item = await worker.hub.next(0, 3.0)
+    if item is None:
+        raise HTTPException(
+            503,
+            f"no picture yet: camera is {worker.state}"
+            + (f" ({worker.reason})" if worker.reason else ""),
+        )
+    return item
+
+
+@router.get("/{camera_id}/frame.jpg")
+async def frame(request: Request, camera_id: int) -> Response:
+    """The newest annotated frame, for pages that poll (more cameras than connections)."""
+    item = await _latest(worker_or_404(request, camera_id))
+    data = await asyncio.to_thread(item.jpeg)
+    return Response(data, media_type="image/jpeg", headers=NO_CACHE)
+
+
+@router.get("/{camera_id}/histogram.jpg")
+async def histogram_frame(request: Request, camera_id: int) -> Response:
+    item = await _latest(worker_or_404(request, camera_id))
+    data = await asyncio.to_thread(item.histogram_jpeg)
+    return Response(data, media_type="image/jpeg", headers=NO_CACHE)

@@ -1,0 +1,46 @@
+"""``/ws``: alarms, motion_end, progress and status messages, as JSON, as they happen."""
+
+from __future__ import annotations
+
+import asyncio
+import contextlib
+
+from fastapi import APIRouter, WebSocket, WebSocketDisconnect
+
+from app.api.services import services
+
+router = APIRouter()
+
+
+@router.websocket("/ws")
+async def websocket(socket: WebSocket) -> None:
+    svc = services(socket)
+    await socket.accept()
+    queue = svc.bus.subscribe()
+    receiver = asyncio.create_task(_ignore_incoming(socket))
+    try:
+        for worker in svc.cameras.all():  # Where every camera stands, first.
+            await socket.send_json({"type": "status", **worker.status()})
+        while True:
+            getter = asyncio.create_task(queue.get())
+            done, _ = await asyncio.wait({getter, receiver}, return_when=asyncio.FIRST_COMPLETED)
+            if getter not in done:
+                getter.cancel()
+                return
+            message = getter.result()
+            if message is None:  # The server is stopping.
+                with contextlib.suppress(Exception):
+                    await socket.close(1001)
+                return
+            await socket.send_json(message)
+    except (WebSocketDisconnect, RuntimeError):
+        return
+    finally:
+        receiver.cancel()
+        svc.bus.unsubscribe(queue)
+
+
+async def _ignore_incoming(socket: WebSocket) -> None:
+    with contextlib.suppress(WebSocketDisconnect, RuntimeError):
+        while True:
+            await socket.receive_text()

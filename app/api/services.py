@@ -1,0 +1,141 @@
+"""What the routers share: settings, database, snapshot files, workers and the message bus."""
+
+from __future__ import annotations
+
+import logging
+import threading
+import time
+from typing import Any, cast
+
+from fastapi import HTTPException, Request
+from starlette.requests import HTTPConnection
+
+from app.core.config import Settings
+from app.storage.db import Database
+from app.storage.files import SnapshotStore, prune
+from app.vision.motion import DEFAULT_METHOD
+from app.workers.analysis import AnalysisManager
+from app.workers.bus import EventBus
+from app.workers.camera import CameraWorker
+from app.workers.manager import CameraManager
+
+log = logging.getLogger("vigil")
+
+
+class Services:
+    def __init__(self, settings: Settings) -> None:
+        self.settings = settings
+        self.closing = False
+        self.bus = EventBus()
+        self.db: Database | None = None
+        self._snapshots: SnapshotStore | None = None
+        self._cameras: CameraManager | None = None
+        self._analyses: AnalysisManager | None = None
+        self._stopping = threading.Event()
+        self._pruner: threading.Thread | None = None
+
+    @property
+    def database(self) -> Database:
+        if self.db is None:
+            raise RuntimeError("the server has not started")
+        return self.db
+
+    @property
+    def snapshots(self) -> SnapshotStore:
+        assert self._snapshots is not None
+        return self._snapshots
+
+    @property
+    def cameras(self) -> CameraManager:
+        assert self._cameras is not None
+        return self._cameras
+
+    @property
+    def analyses(self) -> AnalysisManager:
+        assert self._analyses is not None
+        return self._analyses
+
+    def start(self) -> None:
+        settings = self.settings
+        settings.data_dir.mkdir(parents=True, exist_ok=True)
+        self.db = Database(settings.db_path)
+        self._snapshots = SnapshotStore(settings.snapshots_dir)
+        self._cameras = CameraManager(settings, self.db, self._snapshots, self.bus)
+        self._analyses = AnalysisManager(
+            self.db,
+            self.bus,
+            settings.analyses_dir,
+            settings.analysis_workers,
+            settings.analysis_timeout_s,
+        )
+        if settings.demo_camera and not self.db.cameras():
+            self.db.add_camera("demo", "demo", DEFAULT_METHOD, settings.default_min_area)
+            log.info("no camera configured: added the demo camera")
+        self._cameras.start_all()
+        self._analyses.start()
+        if settings.retention_days > 0:
+            self._pruner = threading.Thread(
+                target=self._prune_forever, name="retention", daemon=True
+            )
+            self._pruner.start()
+
+    def _prune_forever(self) -> None:
+        """Drop what is older than ``retention_days``, now and then every hour."""
+        while not self._stopping.is_set():
+            try:
+                before = time.time() - self.settings.retention_days * 86400
+                removed = prune(self.database, self.snapshots, before)
+                if removed:
+                    log.info("retention: removed %d old snapshots", removed)
+            except Exception:
+                log.exception("retention pass failed")
+            self._stopping.wait(3600)
+
+    def end_streams(self) -> None:
+        """The server is stopping: every stream ends now (workers stop later, in stop())."""
+        self.closing = True
+        if self._cameras is not None:
+            for worker in self._cameras.all():
+                worker.hub.close()
+
+    def stop(self) -> None:
+        self.closing = True
+        self._stopping.set()
+        self.bus.close()
+        if self._cameras is not None:
+            for worker in self._cameras.all():
+                worker.request_stop()
+        if self._analyses is not None:
+            self._analyses.stop(timeout=2.0)
+        if self._cameras is not None:
+            # A worker blocked in a network read returns within the read timeout; a thread
+            # still inside OpenCV when the interpreter exits would abort the process.
+            self._cameras.stop_all(timeout=self.settings.read_timeout_ms / 1000 + 1.0)
+            if self.db is not None and not any(w._thread.is_alive() for w in self._cameras.all()):
+                self.db.close()
+
+    def camera_view(self, camera: dict[str, Any]) -> dict[str, Any]:
+        """A camera as the API shows it: its settings, its live state and its URLs."""
+        worker = self.cameras.get(camera["id"])
+        status = worker.status() if worker else {"state": "stopped", "reason": "", "fps": 0.0}
+        status.pop("camera_id", None)
+        base = f"/api/cameras/{camera['id']}"
+        return {
+            **camera,
+            **status,
+            "active": camera["active"],
+            "stream": f"{base}/stream.mjpg",
+            "histogram": f"{base}/histogram.mjpg",
+            "frame": f"{base}/frame.jpg",
+        }
+
+
+def services(request: HTTPConnection) -> Services:
+    return cast(Services, request.app.state.services)
+
+
+def worker_or_404(request: Request, camera_id: int) -> CameraWorker:
+    worker = services(request).cameras.get(camera_id)
+    if worker is None:
+        raise HTTPException(404, f"no camera {camera_id}")
+    return worker

@@ -1,0 +1,114 @@
+"""Health, the page, camera CRUD, persistence across restarts, the demo camera."""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from pathlib import Path
+
+import httpx
+
+from tests.api.vigil_livekit import Running, wait_for
+
+
+def test_health_and_page(serve: Callable[..., Running]) -> None:
+    server = serve()
+    assert httpx.get(f"{server.base}/api/health").json() == {"status": "ok"}
+    page = httpx.get(f"{server.base}/")
+    assert page.status_code == 200 and "text/html" in page.headers["content-type"]
+    assert "Vigil" in page.text
+    assert httpx.get(f"{server.base}/static/app.js").status_code == 200
+    assert httpx.get(f"{server.base}/static/app.css").status_code == 200
+
+
+def test_demo_camera_on_first_start(serve: Callable[..., Running]) -> None:
+    server = serve(demo_camera=True)
+    (camera,) = httpx.get(f"{server.base}/api/cameras").json()
+    assert camera["name"] == "demo" and camera["source"] == "demo"
+    live = wait_for(
+        lambda: httpx.get(f"{server.base}/api/cameras/{camera['id']}").json()["state"] == "live",
+        10,
+        "the demo camera to go live",
+    )
+    assert live
+
+
+def test_camera_crud_and_restart(
+    serve: Callable[..., Running], motion_video: Path, tmp_path: Path
+) -> None:
+    data = tmp_path / "data"
+    server = serve(data)
+    base = server.base
+    created = httpx.post(
+        f"{base}/api/cameras", json={"name": "yard", "source": f"file://{motion_video}"}
+    )
+    assert created.status_code == 200
+    cam_id = created.json()["id"]
+    other = httpx.post(f"{base}/api/cameras", json={"name": "gone", "source": "demo"}).json()["id"]
+    bad = httpx.post(f"{base}/api/cameras", json={"name": "x", "source": "ftp://nope"})
+    assert bad.status_code == 422 and "unsupported source" in bad.text
+    bad_method = httpx.patch(f"{base}/api/cameras/{cam_id}", json={"method": "magic"})
+    assert bad_method.status_code == 422
+    too_high = httpx.patch(f"{base}/api/cameras/{cam_id}", json={"sensitivity": 300})
+    assert too_high.status_code == 422
+
+    changed = httpx.patch(
+        f"{base}/api/cameras/{cam_id}",
+        json={"sensitivity": 42, "min_area": 250, "method": "mog2", "name": "back yard"},
+    ).json()
+    assert (changed["sensitivity"], changed["min_area"], changed["method"], changed["name"]) == (
+        42,
+        250,
+        "mog2",
+        "back yard",
+    )
+    assert httpx.post(f"{base}/api/cameras/{cam_id}/activate").json()["active"] is True
+    assert httpx.delete(f"{base}/api/cameras/{other}").status_code == 204
+    assert httpx.delete(f"{base}/api/cameras/{other}").status_code == 404
+    assert httpx.get(f"{base}/api/cameras/{other}").status_code == 404
+    wait_for(
+        lambda: httpx.get(f"{base}/api/cameras/{cam_id}").json()["processed"] > 0,
+        10,
+        "frames processed after Activate",
+    )
+    server.stop()
+
+    again = serve(data, demo_camera=True)  # A configured camera: no demo is added.
+    (camera,) = httpx.get(f"{again.base}/api/cameras").json()
+    assert camera["id"] == cam_id and camera["name"] == "back yard"
+    assert (camera["sensitivity"], camera["min_area"], camera["method"]) == (42, 250, "mog2")
+    assert camera["active"] is True
+    wait_for(
+        lambda: httpx.get(f"{again.base}/api/cameras/{cam_id}").json()["processed"] > 0,
+        10,
+        "the restored camera to detect again",
+    )
+    auto = httpx.patch(f"{again.base}/api/cameras/{cam_id}", json={"sensitivity": None}).json()
+    assert auto["sensitivity"] is None
+    stopped = httpx.post(f"{again.base}/api/cameras/{cam_id}/stop").json()
+    assert stopped["active"] is False
+
+
+def test_camera_that_cannot_open_shows_error(serve: Callable[..., Running], tmp_path: Path) -> None:
+    server = serve()
+    cam = httpx.post(
+        f"{server.base}/api/cameras",
+        json={"name": "nothing", "source": str(tmp_path / "absent.avi")},
+    ).json()["id"]
+    camera = wait_for(
+        lambda: (
+            (c := httpx.get(f"{server.base}/api/cameras/{cam}").json())["state"] == "error" and c
+        ),
+        10,
+        "the error state",
+    )
+    assert "file not found" in camera["reason"]
+    frame = httpx.get(f"{server.base}/api/cameras/{cam}/frame.jpg", timeout=10)
+    assert frame.status_code == 503 and "error" in frame.json()["detail"]
+
+
+def test_password_protects_everything_but_health(serve: Callable[..., Running]) -> None:
+    server = serve(password="s3cret")
+    assert httpx.get(f"{server.base}/api/health").status_code == 200
+    assert httpx.get(f"{server.base}/api/cameras").status_code == 401
+    assert httpx.get(f"{server.base}/api/cameras", auth=("x", "wrong")).status_code == 401
+    assert httpx.get(f"{server.base}/api/cameras", auth=("x", "s3cret")).status_code == 200

@@ -1,0 +1,215 @@
+"""Activate -> alarm on /ws, MJPEG frames, histogram stream, sensitivity, snapshots and zip."""
+
+from __future__ import annotations
+
+import io
+import time
+import zipfile
+from collections.abc import Callable
+from pathlib import Path
+
+import cv2
+import httpx
+import numpy as np
+
+from tests.api.vigil_livekit import Running, WsClient, read_mjpeg_frames, wait_for
+
+
+def _add(server: Running, video: Path, **extra: object) -> int:
+    body = {"name": "lane", "source": f"file://{video}", **extra}
+    response = httpx.post(f"{server.base}/api/cameras", json=body)
+    assert response.status_code == 200, response.text
+    cam_id = int(response.json()["id"])
+    wait_for(
+        lambda: httpx.get(f"{server.base}/api/cameras/{cam_id}").json()["state"] == "live",
+        10,
+        "the camera to go live",
+    )
+    return cam_id
+
+
+def test_activate_gives_alarm_snapshot_and_motion_end(
+    serve: Callable[..., Running], motion_video: Path
+) -> None:
+    server = serve()
+    cam = _add(server, motion_video)
+    with WsClient(server.ws) as ws:
+        time.sleep(0.5)  # Watched but not active: no detection, no alarm.
+        assert ws.of_type("alarm") == []
+        assert httpx.get(f"{server.base}/api/cameras/{cam}").json()["processed"] == 0
+        httpx.post(f"{server.base}/api/cameras/{cam}/activate").raise_for_status()
+        (alarm,) = ws.wait("alarm", 15, camera_id=cam)[:1]
+        assert alarm["boxes"] and all(len(b) == 4 for b in alarm["boxes"])
+        _x, y, _w, h = alarm["boxes"][0]
+        assert 60 <= y + h / 2 <= 150, "the box should be on the square's row"
+        snapshot = httpx.get(f"{server.base}{alarm['snapshot']}")
+        assert snapshot.status_code == 200 and snapshot.content[:2] == b"\xff\xd8"
+        assert httpx.get(f"{server.base}{alarm['difference']}").status_code == 200
+        ended = ws.wait("motion_end", 15, camera_id=cam)[0]
+        assert ended["event_id"] == alarm["event_id"]
+        statuses = ws.of_type("status", camera_id=cam)
+        assert any(s["state"] == "live" and s["fps"] > 0 for s in statuses)
+        # The file loops: the next crossing is a new movement, a new alarm.
+        ws.wait("alarm", 15, count=2, camera_id=cam)
+        httpx.post(f"{server.base}/api/cameras/{cam}/stop").raise_for_status()
+    events = httpx.get(f"{server.base}/api/events", params={"camera_id": cam}).json()
+    assert len(events) >= 2
+    assert events[-1]["id"] == alarm["event_id"] and events[-1]["ended_at"] is not None
+
+
+def test_mjpeg_frames_decode_and_histogram(
+    serve: Callable[..., Running], motion_video: Path
+) -> None:
+    server = serve()
+    cam = _add(server, motion_video)
+    with httpx.stream("GET", f"{server.base}/api/cameras/{cam}/stream.mjpg", timeout=10) as r:
+        assert r.headers["content-type"].startswith("multipart/x-mixed-replace")
+        frames = read_mjpeg_frames(r.iter_bytes(), 5)
+    assert all(f.shape == (240, 320, 3) for f in frames)
+    with httpx.stream("GET", f"{server.base}/api/cameras/{cam}/histogram.mjpg", timeout=10) as r:
+        hists = read_mjpeg_frames(r.iter_bytes(), 3)
+    assert all(h.shape == (120, 256, 3) for h in hists)
+    single = httpx.get(f"{server.base}/api/cameras/{cam}/frame.jpg")
+    assert single.headers["content-type"] == "image/jpeg"
+    image = cv2.imdecode(np.frombuffer(single.content, np.uint8), cv2.IMREAD_COLOR)
+    assert image is not None and image.shape == (240, 320, 3)
+    assert httpx.get(f"{server.base}/api/cameras/999/stream.mjpg").status_code == 404
+
+
+def test_stream_shows_red_boxes_when_active(
+    serve: Callable[..., Running], motion_video: Path
+) -> None:
+    server = serve()
+    cam = _add(server, motion_video)
+    httpx.post(f"{server.base}/api/cameras/{cam}/activate").raise_for_status()
+
+    def red_pixels() -> int:
+        data = httpx.get(f"{server.base}/api/cameras/{cam}/frame.jpg").content
+        decoded = cv2.imdecode(np.frombuffer(data, np.uint8), cv2.IMREAD_COLOR)
+        assert decoded is not None
+        bgr = decoded.astype(int)
+        return int(((bgr[..., 2] > 180) & (bgr[..., 1] < 80) & (bgr[..., 0] < 80)).sum())
+
+    wait_for(lambda: red_pixels() > 50, 15, "a red box on the live picture")
+
+
+def test_sensitivity_change_takes_effect(serve: Callable[..., Running], motion_video: Path) -> None:
+    server = serve()
+    cam = _add(server, motion_video, sensitivity=255)  # Nothing differs by 255 grey levels.
+    with WsClient(server.ws) as ws:
+        httpx.post(f"{server.base}/api/cameras/{cam}/activate").raise_for_status()
+        # More than a loop of the video (45 frames), the square crossing in it: no alarm.
+        wait_for(
+            lambda: httpx.get(f"{server.base}/api/cameras/{cam}").json()["processed"] > 50,
+            20,
+            "a loop processed",
+        )
+        assert ws.of_type("alarm") == []
+        httpx.patch(f"{server.base}/api/cameras/{cam}", json={"sensitivity": 25}).raise_for_status()
+        ws.wait("alarm", 15, camera_id=cam)
+    assert httpx.get(f"{server.base}/api/cameras/{cam}").json()["sensitivity"] == 25
+
+
+def test_snapshots_listing_zip_and_delete(
+    serve: Callable[..., Running], motion_video: Path
+) -> None:
+    server = serve()
+    base = server.base
+    cam = _add(server, motion_video)
+    started = time.time()
+    with WsClient(server.ws) as ws:
+        httpx.post(f"{base}/api/cameras/{cam}/activate").raise_for_status()
+        ws.wait("alarm", 15, camera_id=cam)
+    httpx.post(f"{base}/api/cameras/{cam}/stop").raise_for_status()
+    listed = httpx.get(f"{base}/api/snapshots", params={"camera_id": cam}).json()
+    assert {s["kind"] for s in listed} == {"frame", "difference"}
+    assert all(s["ts"] >= started - 1 for s in listed)
+    assert httpx.get(f"{base}/api/snapshots", params={"camera_id": cam + 1}).json() == []
+    assert httpx.get(f"{base}/api/snapshots", params={"since": time.time() + 60}).json() == []
+    frames_only = httpx.get(f"{base}/api/snapshots", params={"kind": "frame"}).json()
+    assert frames_only and all(s["kind"] == "frame" for s in frames_only)
+
+    with httpx.stream("GET", f"{base}/api/snapshots.zip", params={"camera_id": cam}) as r:
+        assert r.headers["content-type"] == "application/zip"
+        assert "attachment" in r.headers["content-disposition"]
+        body = b"".join(r.iter_bytes())
+    archive = zipfile.ZipFile(io.BytesIO(body))
+    assert archive.testzip() is None
+    assert len(archive.namelist()) == len(listed)
+    first = archive.read(archive.namelist()[0])
+    assert cv2.imdecode(np.frombuffer(first, np.uint8), cv2.IMREAD_COLOR) is not None
+    picked = httpx.get(f"{base}/api/snapshots.zip", params={"ids": str(listed[0]["id"])})
+    assert len(zipfile.ZipFile(io.BytesIO(picked.content)).namelist()) == 1
+
+    ids = [s["id"] for s in listed]
+    deleted = httpx.post(f"{base}/api/snapshots/delete", json={"ids": ids}).json()
+    assert sorted(deleted["deleted"]) == sorted(ids)
+    assert httpx.get(f"{base}/api/snapshots/{ids[0]}.jpg").status_code == 404
+    assert httpx.get(f"{base}/api/snapshots", params={"camera_id": cam}).json() == []
+
+
+def test_shutdown_is_prompt_with_streams_open(
+    serve: Callable[..., Running], motion_video: Path
+) -> None:
+    import threading
+
+    server = serve()
+    cam = _add(server, motion_video)
+    got_frames = threading.Event()
+
+    def watch() -> None:
+        try:
+            with httpx.stream(
+                "GET", f"{server.base}/api/cameras/{cam}/stream.mjpg", timeout=30
+            ) as r:
+                for _ in r.iter_bytes():
+                    got_frames.set()
+        except httpx.HTTPError:
+            pass
+
+    viewers = [threading.Thread(target=watch, daemon=True) for _ in range(2)]
+    for viewer in viewers:
+        viewer.start()
+    assert got_frames.wait(10)
+    with WsClient(server.ws):
+        took = server.stop()
+    assert took < 6, f"uvicorn took {took:.1f} s to stop with streams open"
+    for viewer in viewers:
+        viewer.join(5)
+        assert not viewer.is_alive()
+
+
+def test_network_camera_state_is_visible_and_recovers(serve: Callable[..., Running]) -> None:
+    from tests.api.vigil_livekit import MjpegCamera
+
+    camera = MjpegCamera().start()
+    server = serve()
+    try:
+        with WsClient(server.ws) as ws:
+            response = httpx.post(
+                f"{server.base}/api/cameras", json={"name": "gate", "source": camera.url}
+            )
+            cam = response.json()["id"]
+            ws.wait("status", 15, camera_id=cam, state="live")
+            camera.stop()
+            lost = ws.wait("status", 15, camera_id=cam, state="reconnecting")[0]
+            assert lost["reason"]
+            shown = httpx.get(f"{server.base}/api/cameras/{cam}").json()
+            assert shown["state"] == "reconnecting" and shown["reason"]
+            live_before = len(ws.of_type("status", camera_id=cam, state="live"))
+            camera.start()
+            wait_for(
+                lambda: len(ws.of_type("status", camera_id=cam, state="live")) > live_before,
+                20,
+                "the camera to come back live",
+            )
+            back = wait_for(
+                lambda: (
+                    (c := httpx.get(f"{server.base}/api/cameras/{cam}").json())["fps"] > 0 and c
+                ),
+                10,
+                "a measured frame rate",
+            )
+            assert back["state"] == "live"
+    finally:
+        camera.stop()

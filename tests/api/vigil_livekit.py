@@ -1,0 +1,287 @@
+"""Real parts for the live tests: videos with known motion, a uvicorn server, an MJPEG camera.
+
+Imported by the conftests of tests/api, tests/workers and tests/sources.
+"""
+
+from __future__ import annotations
+
+import asyncio
+import json
+import socket
+import threading
+import time
+from collections.abc import Callable, Iterator
+from contextlib import contextmanager
+from dataclasses import dataclass
+from http.server import BaseHTTPRequestHandler, ThreadingHTTPServer
+from pathlib import Path
+from typing import Any
+
+import cv2
+import numpy as np
+import uvicorn
+import websockets
+
+from app.api.app import create_app
+from app.core.config import Settings
+
+WIDTH, HEIGHT, FPS = 320, 240, 15.0
+MOTION_FIRST, MOTION_LAST = 6, 36
+"""Frames in which the square is on screen (the rest of the loop is still)."""
+
+
+def background(seed: int = 3) -> np.ndarray:
+    rng = np.random.default_rng(seed)
+    coarse = cv2.resize(rng.normal(0, 1, (15, 20)), (WIDTH, HEIGHT), interpolation=cv2.INTER_CUBIC)
+    return np.clip(110 + 18 * coarse / coarse.std(), 0, 255).astype(np.uint8)
+
+
+def square_box(index: int) -> tuple[int, int, int, int] | None:
+    """Where the moving square is in frame ``index`` (x, y, w, h), None when absent."""
+    if not MOTION_FIRST <= index <= MOTION_LAST:
+        return None
+    return (20 + 6 * (index - MOTION_FIRST), 90, 40, 40)
+
+
+def frame_at(index: int, base: np.ndarray | None = None, value: int = 230) -> np.ndarray:
+    gray = (background() if base is None else base).copy()
+    box = square_box(index)
+    if box is not None:
+        x, y, w, h = box
+        gray[y : y + h, x : x + w] = value
+    return cv2.cvtColor(gray, cv2.COLOR_GRAY2BGR)
+
+
+def write_video(path: Path, frames: int = 45, value: int = 230) -> Path:
+    """An MJPG AVI, 320x240 at 15 fps: a bright square crosses in frames 6..36, still otherwise."""
+    writer = cv2.VideoWriter(str(path), cv2.VideoWriter.fourcc(*"MJPG"), FPS, (WIDTH, HEIGHT))
+    assert writer.isOpened()
+    base = background()
+    for i in range(frames):
+        writer.write(frame_at(i, base, value))
+    writer.release()
+    return path
+
+
+def free_socket() -> socket.socket:
+    sock = socket.socket(socket.AF_INET, socket.SOCK_STREAM)
+    sock.setsockopt(socket.SOL_SOCKET, socket.SO_REUSEADDR, 1)
+    sock.bind(("127.0.0.1", 0))
+    return sock
+
+
+def wait_for(
+    condition: Callable[[], Any], timeout: float, what: str, interval: float = 0.05
+) -> Any:
+    """Poll until ``condition()`` is truthy; its value, or AssertionError after ``timeout``."""
+    deadline = time.monotonic() + timeout
+    while True:
+        value = condition()
+        if value:
+            return value
+        if time.monotonic() > deadline:
+            raise AssertionError(f"timed out after {timeout} s waiting for {what}")
+        time.sleep(interval)
+
+
+def live_settings(data_dir: Path, **overrides: Any) -> Settings:
+    values: dict[str, Any] = {
+        "data_dir": data_dir,
+        "demo_camera": False,
+        "quiet_s": 0.5,
+        "reconnect_min_s": 0.2,
+        "reconnect_max_s": 1.0,
+        "status_interval_s": 0.25,
+        "open_timeout_ms": 2000,
+        "read_timeout_ms": 1500,
+    }
+    values.update(overrides)
+    return Settings(**values)
+
+
+@dataclass
+class Running:
+    base: str
+    ws: str
+    server: uvicorn.Server
+    thread: threading.Thread
+
+    def stop(self, timeout: float = 15.0) -> float:
+        started = time.monotonic()
+        self.server.should_exit = True
+        self.thread.join(timeout)
+        assert not self.thread.is_alive(), "uvicorn did not stop"
+        return time.monotonic() - started
+
+
+@contextmanager
+def running_server(settings: Settings) -> Iterator[Running]:
+    """A real uvicorn on 127.0.0.1 (a free port), as ``vigil serve`` runs it."""
+    sock = free_socket()
+    port = sock.getsockname()[1]
+    config = uvicorn.Config(
+        create_app(settings),
+        ws="websockets-sansio",
+        log_level="warning",
+        timeout_graceful_shutdown=3,
+        lifespan="on",
+    )
+    server = uvicorn.Server(config)
+    thread = threading.Thread(target=server.run, kwargs={"sockets": [sock]}, daemon=True)
+    thread.start()
+    running = Running(f"http://127.0.0.1:{port}", f"ws://127.0.0.1:{port}/ws", server, thread)
+    try:
+        wait_for(lambda: server.started or not thread.is_alive(), 20, "uvicorn to start")
+        assert server.started, "uvicorn failed to start"
+        yield running
+    finally:
+        if thread.is_alive():
+            running.stop()
+        sock.close()
+
+
+class WsClient:
+    """A /ws client in its own thread, collecting every JSON message."""
+
+    def __init__(self, url: str) -> None:
+        self.url = url
+        self.messages: list[dict[str, Any]] = []
+        self._lock = threading.Lock()
+        self._stop = threading.Event()
+        self._connected = threading.Event()
+        self.error: BaseException | None = None
+        self._thread = threading.Thread(target=lambda: asyncio.run(self._run()), daemon=True)
+
+    def __enter__(self) -> WsClient:
+        self._thread.start()
+        wait_for(lambda: self._connected.is_set() or self.error, 10, "the WebSocket to connect")
+        if self.error:
+            raise self.error
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        self._stop.set()
+        self._thread.join(5)
+
+    async def _run(self) -> None:
+        try:
+            async with websockets.connect(self.url) as socket_:
+                self._connected.set()
+                while not self._stop.is_set():
+                    try:
+                        raw = await asyncio.wait_for(socket_.recv(), 0.2)
+                    except TimeoutError:
+                        continue
+                    message = json.loads(raw)
+                    message["_received"] = time.time()
+                    with self._lock:
+                        self.messages.append(message)
+        except websockets.ConnectionClosed:
+            pass
+        except BaseException as exc:
+            self.error = exc
+
+    def of_type(self, kind: str, **match: Any) -> list[dict[str, Any]]:
+        with self._lock:
+            return [
+                m
+                for m in self.messages
+                if m.get("type") == kind and all(m.get(k) == v for k, v in match.items())
+            ]
+
+    def wait(self, kind: str, timeout: float, count: int = 1, **match: Any) -> list[dict[str, Any]]:
+        return wait_for(
+            lambda: len(self.of_type(kind, **match)) >= count and self.of_type(kind, **match),
+            timeout,
+            f"{count} {kind} {match} on /ws",
+        )
+
+
+class MjpegCamera:
+    """A real HTTP MJPEG camera on loopback, serving ``frame_at`` frames; stop() and start() it."""
+
+    def __init__(self, fps: float = FPS) -> None:
+        self.fps = fps
+        self.port = 0
+        self._server: ThreadingHTTPServer | None = None
+        self._thread: threading.Thread | None = None
+        self.alive = threading.Event()
+        self.served = 0
+
+    @property
+    def url(self) -> str:
+        return f"http://127.0.0.1:{self.port}/video.mjpg"
+
+    def start(self) -> MjpegCamera:
+        camera = self
+        base = background()
+
+        class Handler(BaseHTTPRequestHandler):
+            def log_message(self, *args: Any) -> None:
+                pass
+
+            def do_GET(self) -> None:
+                self.send_response(200)
+                self.send_header("Content-Type", "multipart/x-mixed-replace; boundary=cam")
+                self.end_headers()
+                index = 0
+                try:
+                    while camera.alive.is_set():
+                        ok, data = cv2.imencode(".jpg", frame_at(index % 45, base))
+                        assert ok
+                        part = data.tobytes()
+                        self.wfile.write(
+                            b"--cam\r\nContent-Type: image/jpeg\r\n"
+                            + f"Content-Length: {len(part)}\r\n\r\n".encode()
+                            + part
+                            + b"\r\n"
+                        )
+                        self.wfile.flush()
+                        camera.served += 1
+                        index += 1
+                        time.sleep(1 / camera.fps)
+                except OSError:
+                    pass
+
+        address = ("127.0.0.1", self.port)
+        server = ThreadingHTTPServer(address, Handler, bind_and_activate=False)
+        server.allow_reuse_address = True
+        server.daemon_threads = True
+        server.server_bind()
+        server.server_activate()
+        self.port = server.server_address[1]
+        self._server = server
+        self.alive.set()
+        self._thread = threading.Thread(target=server.serve_forever, args=(0.05,), daemon=True)
+        self._thread.start()
+        return self
+
+    def stop(self) -> None:
+        """The camera dies: open streams are cut and new connections refused."""
+        self.alive.clear()
+        if self._server is not None:
+            self._server.shutdown()
+            self._server.server_close()
+            self._server = None
+        if self._thread is not None:
+            self._thread.join(5)
+
+
+def read_mjpeg_frames(response_iter: Iterator[bytes], count: int) -> list[np.ndarray]:
+    """Decode ``count`` JPEG parts from a multipart/x-mixed-replace body."""
+    buffer = b""
+    frames: list[np.ndarray] = []
+    for chunk in response_iter:
+        buffer += chunk
+        while True:
+            start = buffer.find(b"\xff\xd8")
+            end = buffer.find(b"\xff\xd9", start + 2)
+            if start < 0 or end < 0:
+                break
+            jpeg, buffer = buffer[start : end + 2], buffer[end + 2 :]
+            image = cv2.imdecode(np.frombuffer(jpeg, np.uint8), cv2.IMREAD_COLOR)
+            assert image is not None, "a part of the stream is not a JPEG"
+            frames.append(image)
+            if len(frames) >= count:
+                return frames
+    raise AssertionError(f"stream ended after {len(frames)} frames")

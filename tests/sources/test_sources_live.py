@@ -1,0 +1,126 @@
+"""Live sources: parsing, the demo scene, a looped file, a real HTTP MJPEG camera on loopback."""
+
+from __future__ import annotations
+
+import time
+from pathlib import Path
+
+import pytest
+
+from app.sources.live import (
+    CaptureSource,
+    DemoSource,
+    FileSource,
+    SourceError,
+    open_source,
+    parse_source,
+)
+from tests.api.vigil_livekit import FPS, MjpegCamera, write_video
+
+
+@pytest.mark.parametrize(
+    ("text", "kind", "target"),
+    [
+        ("demo", "demo", "demo"),
+        (" DEMO ", "demo", "demo"),
+        ("0", "device", "0"),
+        ("/dev/video2", "device", "/dev/video2"),
+        ("rtsp://cam.local:554/stream", "rtsp", "rtsp://cam.local:554/stream"),
+        ("http://10.0.0.5/video.mjpg", "http", "http://10.0.0.5/video.mjpg"),
+        ("https://cam.example/mjpg", "http", "https://cam.example/mjpg"),
+        ("file:///srv/clips/a%20b.avi", "file", "/srv/clips/a b.avi"),
+        ("file://localhost/srv/x.avi", "file", "/srv/x.avi"),
+        ("/srv/clips/x.avi", "file", "/srv/clips/x.avi"),
+    ],
+)
+def test_parse_source(text: str, kind: str, target: str) -> None:
+    spec = parse_source(text)
+    assert (spec.kind, spec.target) == (kind, target)
+
+
+@pytest.mark.parametrize("text", ["", "   ", "ftp://x/y", "http://"])
+def test_parse_source_rejects(text: str) -> None:
+    with pytest.raises(ValueError):
+        parse_source(text)
+
+
+def test_demo_loops_with_motion() -> None:
+    source = DemoSource()
+    assert source.paced and source.fps == 15.0
+    frames = [source.read() for _ in range(source.scene.frames + 3)]
+    assert frames[0].shape == (272, 480, 3)
+    assert (frames[-3] == frames[0]).all(), "the scene loops"
+    assert len({len(source.scene.truth(i)) for i in range(source.scene.frames)}) > 1
+    assert max(len(source.scene.truth(i)) for i in range(source.scene.frames)) >= 2
+
+
+def test_file_loops_at_its_own_rate(tmp_path: Path) -> None:
+    source = open_source(parse_source(f"file://{write_video(tmp_path / 'x.avi', frames=10)}"))
+    assert isinstance(source, FileSource)
+    assert source.paced and source.fps == pytest.approx(FPS)
+    frames = [source.read() for _ in range(25)]  # Two and a half loops.
+    assert all(f.shape == (240, 320, 3) for f in frames)
+    source.close()
+
+
+def test_file_errors_are_readable(tmp_path: Path) -> None:
+    with pytest.raises(SourceError, match="file not found"):
+        open_source(parse_source(str(tmp_path / "none.avi")))
+    junk = tmp_path / "junk.avi"
+    junk.write_bytes(b"not a video at all" * 100)
+    with pytest.raises(SourceError):
+        source = open_source(parse_source(str(junk)))
+        source.read()
+
+
+def test_missing_device_is_an_error() -> None:
+    with pytest.raises(SourceError, match="no camera"):
+        open_source(parse_source("7"))
+
+
+def test_http_mjpeg_camera() -> None:
+    camera = MjpegCamera().start()
+    try:
+        source = open_source(parse_source(camera.url), 3000, 2000)
+        assert isinstance(source, CaptureSource) and not source.paced
+        frames = [source.read() for _ in range(5)]
+        assert all(f.shape == (240, 320, 3) for f in frames)
+        camera.stop()  # The camera dies: read() gives up within the read timeout.
+        started = time.monotonic()
+        with pytest.raises(SourceError, match="stream lost"):
+            for _ in range(100):
+                source.read()
+        assert time.monotonic() - started < 6
+        source.close()
+    finally:
+        camera.stop()
+
+
+def test_unreachable_stream_fails_fast() -> None:
+    camera = MjpegCamera().start()
+    url = camera.url
+    camera.stop()  # Nobody listens on that port any more.
+    started = time.monotonic()
+    with pytest.raises(SourceError, match="cannot open stream"):
+        open_source(parse_source(url), 1000, 1000)
+    assert time.monotonic() - started < 5
+
+
+def test_device_path_uses_the_capture_code_path(tmp_path: Path) -> None:
+    # No /dev/video* here: a device given by path goes through the same capture code.
+    source = CaptureSource.device(str(write_video(tmp_path / "dev.avi", frames=5)))
+    assert not source.paced
+    assert source.read().shape == (240, 320, 3)
+    source.close()
+
+
+def test_settings_from_environment(monkeypatch: pytest.MonkeyPatch, tmp_path: Path) -> None:
+    from app.core.config import Settings
+
+    monkeypatch.setenv("VIGIL_PORT", "9123")
+    monkeypatch.setenv("VIGIL_DATA_DIR", str(tmp_path))
+    monkeypatch.setenv("VIGIL_PASSWORD", "pw")
+    settings = Settings()
+    assert (settings.port, settings.data_dir, settings.password) == (9123, tmp_path, "pw")
+    assert settings.db_path == tmp_path / "vigil.db"
+    assert Settings(port=1).port == 1

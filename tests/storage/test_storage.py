@@ -1,0 +1,121 @@
+"""SQLite in WAL mode, snapshot files written whole, the zip streamed in pieces."""
+
+from __future__ import annotations
+
+import io
+import sqlite3
+import zipfile
+from pathlib import Path
+
+from app.storage import Database, SnapshotStore, stream_zip, write_atomic
+
+
+def test_database_is_wal_and_cameras_round_trip(tmp_path: Path) -> None:
+    db = Database(tmp_path / "v.db")
+    assert db.journal_mode == "wal"
+    cam = db.add_camera("door", "file:///x.avi", "adaptive", 100.0)
+    db.update_camera(cam, sensitivity=40.0, active=1, show_mask=1)
+    db.close()
+    again = Database(tmp_path / "v.db")
+    (row,) = again.cameras()
+    assert row["name"] == "door" and row["sensitivity"] == 40.0
+    assert row["active"] is True and row["show_mask"] is True
+    assert again.delete_camera(cam) and again.cameras() == []
+    again.close()
+
+
+def test_other_connections_read_while_open(tmp_path: Path) -> None:
+    db = Database(tmp_path / "v.db")
+    db.add_camera("a", "demo", "adaptive", 100.0)
+    other = sqlite3.connect(tmp_path / "v.db")
+    assert other.execute("SELECT name FROM cameras").fetchall() == [("a",)]
+    other.close()
+    db.close()
+
+
+def test_events_and_snapshot_filters(tmp_path: Path) -> None:
+    db = Database(tmp_path / "v.db")
+    e1 = db.add_event(1, 100.0, [[1, 2, 3, 4]], 12.0, [1])
+    db.add_event(2, 200.0, [], 5.0)
+    db.end_event(e1, 101.5, 30.0, [1, 2])
+    (ev,) = db.events(camera_id=1)
+    assert ev["ended_at"] == 101.5 and ev["max_area"] == 30.0 and ev["track_ids"] == [1, 2]
+    assert [e["camera_id"] for e in db.events(since=150)] == [2]
+    s1 = db.add_snapshot(1, e1, 100.0, "frame", "1/a.jpg", 10)
+    db.add_snapshot(1, e1, 100.0, "difference", "1/b.jpg", 10)
+    db.add_snapshot(2, None, 300.0, "frame", "2/c.jpg", 10)
+    assert len(db.snapshots(camera_id=1)) == 2
+    assert len(db.snapshots(kind="frame")) == 2
+    assert [s["camera_id"] for s in db.snapshots(since=250)] == [2]
+    assert [s["id"] for s in db.snapshots(until=150, kind="frame")] == [s1]
+    assert [r["id"] for r in db.delete_snapshots([s1, 999])] == [s1]
+    assert db.snapshot(s1) is None
+    db.close()
+
+
+def test_unfinished_analyses_fail_on_restart(tmp_path: Path) -> None:
+    db = Database(tmp_path / "v.db")
+    db.add_analysis("abc", "x.avi", {"method": None})
+    db.add_analysis("def", "y.avi", {})
+    db.update_analysis("def", status="done", progress=1.0)
+    assert db.fail_unfinished_analyses("restarted") == 1
+    assert db.analysis("abc")["status"] == "failed"  # type: ignore[index]
+    assert db.analysis("abc")["error"] == "restarted"  # type: ignore[index]
+    assert db.analysis("def")["status"] == "done"  # type: ignore[index]
+    db.close()
+
+
+def test_write_atomic_leaves_no_temporary(tmp_path: Path) -> None:
+    target = tmp_path / "deep" / "x.jpg"
+    write_atomic(target, b"one")
+    write_atomic(target, b"two")
+    assert target.read_bytes() == b"two"
+    assert [p.name for p in target.parent.iterdir()] == ["x.jpg"]
+
+
+def test_snapshot_store_paths_stay_inside(tmp_path: Path) -> None:
+    store = SnapshotStore(tmp_path / "snaps")
+    relative = store.save(3, 1_700_000_000.25, "frame", b"jpeg", 9)
+    assert relative.startswith("3/2023-11-14/") and relative.endswith("-e9-frame.jpg")
+    assert store.path(relative).read_bytes() == b"jpeg"
+    try:
+        store.path("../../etc/passwd")
+    except ValueError:
+        pass
+    else:
+        raise AssertionError("a path outside the store was accepted")
+
+
+def test_stream_zip_is_streamed_and_valid(tmp_path: Path) -> None:
+    files = []
+    for i in range(5):
+        path = tmp_path / f"{i}.jpg"
+        path.write_bytes(bytes([i]) * (100_000 + i))
+        files.append((path, f"cam/{i}.jpg"))
+    files.append((tmp_path / "missing.jpg", "cam/missing.jpg"))
+    chunks = list(stream_zip(files, chunk_size=16_384))
+    assert len(chunks) > 5, "the zip should come in pieces, not whole"
+    archive = zipfile.ZipFile(io.BytesIO(b"".join(chunks)))
+    assert archive.testzip() is None
+    assert archive.namelist() == [f"cam/{i}.jpg" for i in range(5)]
+    assert archive.read("cam/3.jpg") == bytes([3]) * 100_003
+
+
+def test_prune_removes_old_snapshots_and_events(tmp_path: Path) -> None:
+    from app.storage import prune
+
+    db = Database(tmp_path / "v.db")
+    store = SnapshotStore(tmp_path / "snaps")
+    old_event = db.add_event(1, 100.0, [], 1.0)
+    db.end_event(old_event, 101.0, 1.0)
+    open_event = db.add_event(1, 150.0, [], 1.0)
+    new_event = db.add_event(1, 5000.0, [], 1.0)
+    old = store.save(1, 100.0, "frame", b"a", old_event)
+    new = store.save(1, 5000.0, "frame", b"b", new_event)
+    db.add_snapshot(1, old_event, 100.0, "frame", old, 1)
+    keep = db.add_snapshot(1, new_event, 5000.0, "frame", new, 1)
+    assert prune(db, store, before=1000.0, batch=1) == 1
+    assert [s["id"] for s in db.snapshots()] == [keep]
+    assert not store.path(old).exists() and store.path(new).exists()
+    assert sorted(e["id"] for e in db.events()) == [open_event, new_event]
+    db.close()

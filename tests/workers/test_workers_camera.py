@@ -1,0 +1,142 @@
+"""A camera worker on real sources: detection only when active, lazy JPEGs, alarms, reconnects."""
+
+from __future__ import annotations
+
+import asyncio
+from pathlib import Path
+from typing import Any
+
+import pytest
+
+from app.storage import Database, SnapshotStore
+from app.vision.motion import DEFAULT_METHOD
+from app.workers.bus import EventBus
+from app.workers.camera import CameraWorker
+from tests.api.vigil_livekit import MjpegCamera, live_settings, wait_for, write_video
+
+
+@pytest.fixture
+def parts(tmp_path: Path) -> dict[str, Any]:
+    settings = live_settings(tmp_path / "data")
+    db = Database(settings.db_path)
+    return {
+        "settings": settings,
+        "db": db,
+        "snapshots": SnapshotStore(settings.snapshots_dir),
+        "bus": EventBus(),
+    }
+
+
+def _worker(parts: dict[str, Any], source: str, **camera: Any) -> CameraWorker:
+    db: Database = parts["db"]
+    cam_id = db.add_camera("cam", source, DEFAULT_METHOD, 100.0, camera.get("sensitivity"))
+    row = db.camera(cam_id)
+    assert row is not None
+    row.update(camera)
+    return CameraWorker(row, parts["settings"], db, parts["snapshots"], parts["bus"])
+
+
+def test_frames_are_encoded_only_when_watched_and_once(
+    parts: dict[str, Any], tmp_path: Path
+) -> None:
+    worker = _worker(parts, str(write_video(tmp_path / "v.avi")))
+    worker.start()
+    try:
+        wait_for(lambda: worker.frames >= 20, 10, "frames")
+        assert worker.encodes.frames == 0 and worker.encodes.histograms == 0
+        assert worker.processed == 0, "no detection before Activate"
+        latest = worker.hub.latest
+        assert latest is not None
+        assert latest.jpeg() is latest.jpeg()  # Many viewers, one encode.
+        latest.histogram_jpeg()
+        assert (worker.encodes.frames, worker.encodes.histograms) == (1, 1)
+        assert worker.state == "live" and 10 < worker.fps < 20, worker.fps
+    finally:
+        worker.request_stop()
+        assert worker.join(5)
+    assert worker.state == "stopped"
+
+
+def test_alarm_writes_event_and_snapshots(parts: dict[str, Any], tmp_path: Path) -> None:
+    received: list[dict[str, Any]] = []
+
+    async def listen() -> None:
+        queue = parts["bus"].subscribe()
+        worker.set_active(True)
+        while True:
+            message = await asyncio.wait_for(queue.get(), 15)
+            assert message is not None
+            received.append(message)
+            if message["type"] == "motion_end":
+                return
+
+    worker = _worker(parts, str(write_video(tmp_path / "v.avi")))
+    worker.start()
+    try:
+        asyncio.run(listen())
+    finally:
+        worker.request_stop()
+        worker.join(5)
+    (alarm,) = [m for m in received if m["type"] == "alarm"]
+    db: Database = parts["db"]
+    (event,) = db.events()
+    assert event["id"] == alarm["event_id"] and event["ended_at"] is not None
+    assert event["max_area"] > 1000
+    snaps = db.snapshots()
+    assert {s["kind"] for s in snaps} == {"frame", "difference"}
+    for snap in snaps:
+        path = parts["snapshots"].path(snap["path"])
+        assert path.read_bytes()[:2] == b"\xff\xd8" and path.stat().st_size == snap["size"]
+    assert not list(parts["settings"].snapshots_dir.rglob(".tmp-*"))
+
+
+def test_lost_camera_reconnects(parts: dict[str, Any]) -> None:
+    camera = MjpegCamera().start()
+    worker = _worker(parts, camera.url)
+    states: list[str] = []
+    worker.start()
+    try:
+        wait_for(lambda: worker.state == "live" and worker.frames > 5, 15, "live")
+        camera.stop()
+        wait_for(lambda: worker.state == "reconnecting", 10, "reconnecting")
+        states.append(worker.state)
+        assert worker.reason
+        wait_for(lambda: "retrying" in worker.reason, 10, "a failed retry")
+        frames_before = worker.frames
+        camera.start()  # Back on the same port.
+        wait_for(
+            lambda: worker.state == "live" and worker.frames > frames_before + 5,
+            20,
+            "the camera to come back",
+        )
+    finally:
+        worker.request_stop()
+        worker.join(5)
+        camera.stop()
+    assert states == ["reconnecting"]
+
+
+def test_settings_apply_on_next_frame(parts: dict[str, Any], tmp_path: Path) -> None:
+    worker = _worker(parts, str(write_video(tmp_path / "v.avi")), active=True)
+    worker.start()
+    try:
+        wait_for(lambda: worker.processed > 3, 10, "detection running")
+        pipeline = worker._pipeline
+        assert pipeline is not None
+        worker.update(sensitivity=77, min_area=321)
+        wait_for(lambda: pipeline.method.sensitivity == 77, 5, "the new sensitivity")
+        assert pipeline.blobs.min_area == 321
+        worker.update(method="frame-difference")
+        wait_for(
+            lambda: (
+                worker._pipeline is not None
+                and worker._pipeline.config.method == "frame-difference"
+            ),
+            5,
+            "the new method",
+        )
+        worker.set_active(False)
+        wait_for(lambda: worker._pipeline is None, 5, "detection to stop")
+    finally:
+        worker.request_stop()
+        worker.join(5)

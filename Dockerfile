@@ -11,8 +11,6 @@ ENV PYTHONDONTWRITEBYTECODE=1 \
 WORKDIR /opt/vigil
 COPY pyproject.toml README.md ./
 COPY app ./app
-COPY templates ./templates
-COPY static ./static
 RUN pip install . \
     && useradd --system --create-home --uid 10001 vigil \
     && mkdir -p /data \

@@ -23,9 +23,9 @@ from app.api.routes import analyses, cameras, events, health, pages, snapshots, 
 from app.api.services import Services
 from app.core.config import Settings
 
-PROJECT_ROOT = Path(vigil_package.__file__).resolve().parent.parent
-STATIC_DIR = PROJECT_ROOT / "static"
-TEMPLATES_DIR = PROJECT_ROOT / "templates"
+PACKAGE_DIR = Path(vigil_package.__file__).resolve().parent
+STATIC_DIR = PACKAGE_DIR / "static"
+TEMPLATES_DIR = PACKAGE_DIR / "templates"
 
 
 def create_app(settings: Settings | None = None) -> FastAPI:

@@ -14,7 +14,7 @@ from app.vision.motion import DEFAULT_METHOD, METHODS
 
 router = APIRouter()
 TEMPLATES = Jinja2Templates(
-    directory=str(Path(vigil_package.__file__).resolve().parent.parent / "templates")
+    directory=str(Path(vigil_package.__file__).resolve().parent / "templates")
 )
 
 

@@ -4,13 +4,12 @@ from __future__ import annotations
 
 import csv
 import json
-import os
-import tempfile
 from pathlib import Path
 from typing import IO, Any
 
 import cv2
 
+from app.core.atomic import write_atomic
 from app.vision.detections import Detection
 from app.vision.types import Image
 
@@ -79,18 +78,7 @@ class AnnotatedVideo:
 
 def write_json(path: Path, data: Any) -> None:
     """Write JSON atomically: a reader never sees half a file."""
-    write_bytes_atomic(path, json.dumps(data, indent=2, allow_nan=False).encode())
-
-
-def write_bytes_atomic(path: Path, data: bytes) -> None:
-    fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=f".{path.name}.")
-    try:
-        with os.fdopen(fd, "wb") as handle:
-            handle.write(data)
-        Path(tmp).replace(path)
-    except BaseException:
-        Path(tmp).unlink(missing_ok=True)
-        raise
+    write_atomic(path, json.dumps(data, indent=2, allow_nan=False).encode())
 
 
 def write_image(path: Path, image: Image, quality: int = 90) -> None:
@@ -99,4 +87,4 @@ def write_image(path: Path, image: Image, quality: int = 90) -> None:
     ok, encoded = cv2.imencode(suffix, image, params)
     if not ok:
         raise OSError(f"cannot encode {path.name}")
-    write_bytes_atomic(path, encoded.tobytes())
+    write_atomic(path, encoded.tobytes())

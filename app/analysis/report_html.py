@@ -21,7 +21,7 @@ matplotlib.use("Agg")
 import matplotlib.pyplot as plt
 from matplotlib.figure import Figure
 
-from app.analysis.outputs import write_bytes_atomic
+from app.core.atomic import write_atomic
 
 MAX_KEY_FRAMES = 24
 MAX_TRACKS_PLOTTED = 40
@@ -50,7 +50,7 @@ def write_report_html(path: Path, report: dict[str, Any], extras: dict[str, Any]
         key_frames=key_frames,
         evaluation=report.get("evaluation"),
     )
-    write_bytes_atomic(path, html.encode())
+    write_atomic(path, html.encode())
 
 
 def _tracks_over_scene(first_frame: Any, paths: dict[int, list[tuple[float, float]]]) -> str | None:

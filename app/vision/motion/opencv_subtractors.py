@@ -21,6 +21,11 @@ class _OpenCVSubtractor(MotionMethod):
         self._model = self._create()
 
     def _create(self) -> Any:
+        model = self._new_model()
+        self._configure(model)
+        return model
+
+    def _new_model(self) -> Any:
         raise NotImplementedError
 
     def _configure(self, model: Any) -> None:
@@ -51,10 +56,8 @@ class MOG2(_OpenCVSubtractor):
     name = "mog2"
     description = "OpenCV's adaptive Gaussian mixture (Zivkovic 2004)"
 
-    def _create(self) -> Any:
-        model = cv2.createBackgroundSubtractorMOG2(detectShadows=False)
-        self._configure(model)
-        return model
+    def _new_model(self) -> Any:
+        return cv2.createBackgroundSubtractorMOG2(detectShadows=False)
 
     def _configure(self, model: Any) -> None:
         if self._sensitivity is None:
@@ -67,10 +70,8 @@ class KNN(_OpenCVSubtractor):
     name = "knn"
     description = "OpenCV's k-nearest-neighbour background model (Zivkovic 2006)"
 
-    def _create(self) -> Any:
-        model = cv2.createBackgroundSubtractorKNN(detectShadows=False)
-        self._configure(model)
-        return model
+    def _new_model(self) -> Any:
+        return cv2.createBackgroundSubtractorKNN(detectShadows=False)
 
     def _configure(self, model: Any) -> None:
         model.setDist2Threshold(400.0 if self._sensitivity is None else self._sensitivity**2)

@@ -41,6 +41,8 @@ class MotionEvent:
 class AlarmUpdate:
     started: MotionEvent | None = None
     ended: MotionEvent | None = None
+    newcomers: tuple[int, ...] = ()
+    """Tracks that joined the event already open: each new movement is worth an alarm."""
 
 
 class AlarmLogic:
@@ -63,10 +65,12 @@ class AlarmLogic:
                 started = self.current
             event = self.current
             event.end_frame, event.end_time_s = frame, time_s
-            event.track_ids.update(d.track_id for d in detections if d.track_id is not None)
+            seen = {d.track_id for d in detections if d.track_id is not None}
+            newcomers = () if started else tuple(sorted(seen - event.track_ids))
+            event.track_ids.update(seen)
             if area > event.max_area:
                 event.max_area, event.peak_frame = area, frame
-            return AlarmUpdate(started=started)
+            return AlarmUpdate(started=started, newcomers=newcomers)
         if self.current is not None and time_s - self._last_motion_s >= self.quiet_s:
             ended, self.current = self.current, None
         return AlarmUpdate(ended=ended)

@@ -219,6 +219,8 @@ class CameraWorker:
             update = alarms.update(result.index, result.time_s, result.detections)
             if update.started is not None:
                 self._alarm(update.started, live, result, now)
+            elif update.newcomers and alarms.current is not None:
+                self._alarm(alarms.current, live, result, now)
             if update.ended is not None:
                 self._motion_end(update.ended, now)
         self.hub.publish(live)
@@ -276,6 +278,7 @@ class CameraWorker:
     # Alarms -------------------------------------------------------------------------------
 
     def _alarm(self, event: MotionEvent, live: LiveFrame, result: FrameResult, now: float) -> None:
+        """A new event, or a new object within the open one: snapshots and an ``alarm``."""
         detections: list[Detection] = list(result.detections)
         boxes = [d.box.as_list() for d in detections]
         picture = Annotator()(live.frame, detections, live.trails)
@@ -284,9 +287,11 @@ class CameraWorker:
         height, width = live.frame.shape[:2]
         if difference.shape[:2] != (height, width):
             difference = cv2.resize(difference, (width, height), interpolation=cv2.INTER_NEAREST)
-        track_ids = sorted(d.track_id for d in detections if d.track_id is not None)
-        event_id = self.db.add_event(self.camera_id, now, boxes, event.max_area, track_ids)
-        self._event_rows[event.id] = event_id
+        event_id = self._event_rows.get(event.id)
+        if event_id is None:
+            track_ids = sorted(d.track_id for d in detections if d.track_id is not None)
+            event_id = self.db.add_event(self.camera_id, now, boxes, event.max_area, track_ids)
+            self._event_rows[event.id] = event_id
         ids: dict[str, int] = {}
         for kind, image in (("frame", picture), ("difference", difference)):
             data = encode_jpeg(image, 90)

@@ -36,3 +36,14 @@ def test_finish_closes_the_open_event():
     event = logic.finish()
     assert event is not None and event.end_frame == 1
     assert logic.finish() is None
+
+
+def test_a_new_object_joining_an_open_event_is_announced():
+    logic = AlarmLogic()
+    first = [Detection(Box(0, 0, 10, 10), (5, 5), 100.0, track_id=1)]
+    both = [*first, Detection(Box(50, 0, 10, 10), (55, 5), 100.0, track_id=2)]
+    assert logic.update(0, 0.0, first).started is not None
+    assert logic.update(1, 0.1, first).newcomers == ()
+    update = logic.update(2, 0.2, both)
+    assert update.started is None and update.newcomers == (2,)
+    assert logic.update(3, 0.3, both).newcomers == ()

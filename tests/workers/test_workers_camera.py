@@ -8,11 +8,13 @@ from typing import Any
 
 import pytest
 
+from app.sources.synthetic import MovingObject, Scene
 from app.storage import Database, SnapshotStore
 from app.vision.motion import DEFAULT_METHOD
 from app.workers.bus import EventBus
 from app.workers.camera import CameraWorker
 from tests.api.vigil_livekit import MjpegCamera, live_settings, wait_for, write_video
+from tests.conftest import write_scene_video
 
 
 @pytest.fixture
@@ -140,3 +142,41 @@ def test_settings_apply_on_next_frame(parts: dict[str, Any], tmp_path: Path) -> 
     finally:
         worker.request_stop()
         worker.join(5)
+
+
+def test_each_new_object_in_an_open_event_gives_its_own_alarm(
+    parts: dict[str, Any], tmp_path: Path
+) -> None:
+    # One walker from frame 3, a second from frame 20, both gone at frame 50: one event.
+    scene = Scene(
+        name="two", size=(320, 240), fps=15.0, frames=70,
+        objects=(
+            MovingObject((20, 60), (60.0, 0.0), (28, 40), 220, first_frame=3, last_frame=50),
+            MovingObject((20, 160), (50.0, 0.0), (28, 40), 30, first_frame=20, last_frame=50),
+        ),
+    )  # fmt: skip
+    video = write_scene_video(scene, tmp_path / "two.avi")
+    received: list[dict[str, Any]] = []
+
+    async def listen() -> None:
+        queue = parts["bus"].subscribe()
+        worker.set_active(True)
+        while True:
+            message = await asyncio.wait_for(queue.get(), 15)
+            assert message is not None
+            received.append(message)
+            if message["type"] == "motion_end":
+                return
+
+    worker = _worker(parts, str(video))
+    worker.start()
+    try:
+        asyncio.run(listen())
+    finally:
+        worker.request_stop()
+        worker.join(5)
+    alarms = [m for m in received if m["type"] == "alarm"]
+    assert len(alarms) == 2
+    assert alarms[0]["event_id"] == alarms[1]["event_id"]
+    assert len(alarms[1]["boxes"]) == 2
+    assert alarms[0]["snapshot"] != alarms[1]["snapshot"]

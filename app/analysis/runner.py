@@ -27,6 +27,8 @@ from app.vision.types import Image, Mask
 
 Progress = Callable[[int, int | None], None]
 """Called with (frames done, frames expected or None) as the analysis goes."""
+FrameObserver = Callable[[Image], None]
+"""Called with each annotated frame (for a live view of a running analysis)."""
 
 
 @dataclass(frozen=True)
@@ -109,6 +111,7 @@ def analyze(
     out_dir: Path,
     options: AnalysisOptions | None = None,
     progress: Progress | None = None,
+    on_frame: FrameObserver | None = None,
 ) -> dict[str, Any]:
     """Analyse ``input_path`` into ``out_dir``; returns the report (also report.json).
 
@@ -123,7 +126,7 @@ def analyze(
     (out_dir / "differences").mkdir(exist_ok=True)
     if options.masks:
         (out_dir / "masks").mkdir(exist_ok=True)
-    return _Analysis(source, out_dir, options, truth, progress).run()
+    return _Analysis(source, out_dir, options, truth, progress, on_frame).run()
 
 
 class _Analysis:
@@ -134,8 +137,10 @@ class _Analysis:
         options: AnalysisOptions,
         truth: Truth | None,
         progress: Progress | None,
+        on_frame: FrameObserver | None,
     ) -> None:
         self.source = source
+        self.on_frame = on_frame
         self.out = out_dir
         self.options = options
         self.progress = progress
@@ -161,6 +166,8 @@ class _Analysis:
                 result = self.pipeline.process(frame)
                 annotated = self.annotator(frame, result.detections, self.pipeline.tracker.trails())
                 video.write(annotated)
+                if self.on_frame is not None:
+                    self.on_frame(annotated)
                 tracks_csv.write(result.index, result.time_s, result.detections)
                 self._record(result, annotated)
                 frames += 1

@@ -36,7 +36,7 @@ def main(argv: list[str] | None = None) -> int:
         import cv2
 
         from app.analysis import runner
-        from app.storage.files import write_atomic
+        from app.core.atomic import write_atomic
         from app.vision.pipeline import PipelineConfig
 
         config = PipelineConfig(
@@ -48,21 +48,17 @@ def main(argv: list[str] | None = None) -> int:
         out_dir.mkdir(parents=True, exist_ok=True)
         live_path = out_dir / LIVE_FRAME
 
-        class LiveAnnotatedVideo(runner.AnnotatedVideo):
-            """The runner's video writer, also leaving the newest frame for the live stream."""
+        last_live = [0.0]
 
-            last = 0.0
+        def keep_live_frame(frame: Any) -> None:
+            """Leave the newest annotated frame for the analysis' live stream."""
+            now = time.monotonic()
+            if now - last_live[0] >= LIVE_INTERVAL_S:
+                last_live[0] = now
+                ok, data = cv2.imencode(".jpg", frame, [cv2.IMWRITE_JPEG_QUALITY, 75])
+                if ok:
+                    write_atomic(live_path, data.tobytes())
 
-            def write(self, frame: Any) -> None:
-                super().write(frame)
-                now = time.monotonic()
-                if now - self.last >= LIVE_INTERVAL_S:
-                    self.last = now
-                    ok, data = cv2.imencode(".jpg", frame, [cv2.IMWRITE_JPEG_QUALITY, 75])
-                    if ok:
-                        write_atomic(live_path, data.tobytes())
-
-        runner.AnnotatedVideo = LiveAnnotatedVideo  # type: ignore[misc]
         capture = cv2.VideoCapture(str(args.input), cv2.CAP_FFMPEG)
         claimed = int(capture.get(cv2.CAP_PROP_FRAME_COUNT)) if capture.isOpened() else 0
         capture.release()
@@ -80,7 +76,9 @@ def main(argv: list[str] | None = None) -> int:
                 fraction = min(0.99, done / (done + 300))
             _say({"progress": round(fraction, 4), "frames": done})
 
-        runner.analyze(args.input, out_dir, runner.AnalysisOptions(pipeline=config), progress)
+        runner.analyze(
+            args.input, out_dir, runner.AnalysisOptions(pipeline=config), progress, keep_live_frame
+        )
     except ValueError as exc:  # InputError, TruthError, bad options: one readable line.
         _say({"error": str(exc).splitlines()[0] if str(exc) else type(exc).__name__})
         return 2

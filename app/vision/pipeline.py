@@ -88,6 +88,10 @@ class Pipeline:
     def set_min_area(self, min_area: float) -> None:
         self.blobs = BlobExtractor(min_area)
 
+    def set_method(self, name: str) -> None:
+        """Swap the segmentation method (it learns the scene afresh); tracks carry on."""
+        self.method = create_method(name, self.method.sensitivity)
+
     def process(self, frame: Image, time_s: float | None = None) -> FrameResult:
         index = self._index
         self._index += 1

@@ -244,13 +244,11 @@ class CameraWorker:
             return
         if self._config["method"] != old["method"]:
             try:
-                self._pipeline = self._new_pipeline(fps)
+                pipeline.set_method(self._config["method"])
             except ValueError:
                 log.exception("camera %s: keeping method %s", self.camera_id, old["method"])
                 self._config = old
                 return
-            self._pipeline._index = pipeline._index  # Keep frame numbers counting up.
-            return
         if self._config["sensitivity"] != old["sensitivity"]:
             pipeline.set_sensitivity(self._config["sensitivity"])
         if self._config["min_area"] != old["min_area"]:

@@ -65,3 +65,12 @@ def test_grey_statistics_are_of_the_input_frame():
     assert result.stats.std == 100.0
     assert result.gray.shape == (100, 100)
     assert cv2.countNonZero(result.mask) == 0
+
+
+def test_method_swap_keeps_tracks_and_sensitivity():
+    pipeline = Pipeline(PipelineConfig(sensitivity=20), fps=SCENE.fps)
+    for i in range(15):
+        pipeline.process(SCENE.frame(i))
+    pipeline.set_method("knn")
+    assert pipeline.method.name == "knn" and pipeline.method.sensitivity == 20
+    assert pipeline.process(SCENE.frame(15)).index == 15

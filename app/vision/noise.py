@@ -37,8 +37,14 @@ def noise_sigma(difference: GrayImage) -> float:
 class NoiseEstimator:
     """Running noise estimate, refreshed every few frames and smoothed over time."""
 
-    def __init__(self, k: float = 4.0, floor: float = 10.0, ceiling: float = 60.0,
-                 every: int = 4, smoothing: float = 0.2) -> None:
+    def __init__(
+        self,
+        k: float = 4.0,
+        floor: float = 10.0,
+        ceiling: float = 60.0,
+        every: int = 4,
+        smoothing: float = 0.2,
+    ) -> None:
         self.k = k
         self.floor = floor
         self.ceiling = ceiling

@@ -9,7 +9,7 @@ from __future__ import annotations
 
 import time
 from collections import defaultdict, deque
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 
 from app.vision.blobs import BlobExtractor
 from app.vision.calibration import GroundPlane, GroundTracker
@@ -81,16 +81,20 @@ class Pipeline:
         self.timings: dict[str, deque[float]] = defaultdict(lambda: deque(maxlen=TIMING_SAMPLES))
         self._index = 0
 
+    # Settings a live camera changes; each takes effect on the next frame.
+
     def set_sensitivity(self, sensitivity: float | None) -> None:
-        """Takes effect on the next frame."""
         self.method.sensitivity = sensitivity
+        self.config = replace(self.config, sensitivity=sensitivity)
 
     def set_min_area(self, min_area: float) -> None:
         self.blobs = BlobExtractor(min_area)
+        self.config = replace(self.config, min_area=min_area)
 
     def set_method(self, name: str) -> None:
         """Swap the segmentation method (it learns the scene afresh); tracks carry on."""
         self.method = create_method(name, self.method.sensitivity)
+        self.config = replace(self.config, method=name)
 
     def process(self, frame: Image, time_s: float | None = None) -> FrameResult:
         index = self._index

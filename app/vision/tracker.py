@@ -7,6 +7,13 @@ or hide briefly keep their id. When two tracked objects merge into one blob
 (they cross), the blob is split back into one detection per track at the
 predicted positions, so neither object is lost for the frames of the
 crossing.
+
+A track is reported once it has been seen ``min_hits`` times and has moved
+away from where it was born, or seen ``min_hits_in_place`` times if it has
+not (Motion's ``minimum_motion_frames``, kept short for what moves): swaying
+leaves and start-up ghosts flicker in place, objects move on. Velocity is a
+Theil-Sen line through the recent centroids, so a frame or two of a blob
+splitting or dragging a remnant along does not tilt it.
 """
 
 from __future__ import annotations
@@ -19,7 +26,7 @@ import numpy as np
 from scipy.optimize import linear_sum_assignment
 
 from app.vision.detections import Box, Detection
-from app.vision.kinematics import fit_velocity, speed
+from app.vision.kinematics import speed
 
 Point = tuple[float, float]
 
@@ -37,6 +44,10 @@ class Track:
     centroids: deque[Point] = field(default_factory=lambda: deque(maxlen=12))
     trail: deque[Point] = field(default_factory=lambda: deque(maxlen=64))
     velocity: Point = (0.0, 0.0)
+    origin: Point = (0.0, 0.0)
+    """Where the track was first seen."""
+    moved: bool = False
+    """Whether it has ever been further than ``in_place_px`` from its origin."""
 
     @property
     def last_centroid(self) -> Point:
@@ -54,6 +65,14 @@ class TrackerConfig:
     """Frames a track coasts without a detection before it is dropped."""
     min_hits: int = 2
     """Sightings before a track is reported (drops one-frame flickers)."""
+    min_hits_in_place: int = 3
+    """Sightings before a track that has stayed where it was born is reported.
+
+    Leaves, ripples and start-up ghosts flicker in place for a frame or two;
+    an object moves on, and is reported at ``min_hits`` as soon as it does.
+    """
+    in_place_px: float = 2.0
+    """Distance from its first centroid within which a track counts as in place."""
     gate_px: float = 25.0
     """Largest jump (beyond the object's own size) a detection may make to join a track."""
     smoothing_window_s: float = 0.6
@@ -200,19 +219,22 @@ class Tracker:
         track.times.append(time_s)
         track.centroids.append(detection.centroid)
         track.trail.append(detection.centroid)
+        track.moved = track.moved or math.dist(detection.centroid, track.origin) > (
+            self.config.in_place_px
+        )
         window = [
             (t, c)
             for t, c in zip(track.times, track.centroids, strict=True)
             if time_s - t <= self.config.smoothing_window_s
         ]
-        track.velocity = fit_velocity([t for t, _ in window], [c for _, c in window])
+        track.velocity = _robust_velocity([t for t, _ in window], [c for _, c in window])
         self._confirm_if_due(track)
         if not track.track_id:
             return None
         return detection.with_track(track.track_id, step, speed(track.velocity))
 
     def _start(self, detection: Detection, time_s: float) -> Track:
-        track = Track(key=self._next_key, box=detection.box)
+        track = Track(key=self._next_key, box=detection.box, origin=detection.centroid)
         self._next_key += 1
         track.times.append(time_s)
         track.centroids.append(detection.centroid)
@@ -222,7 +244,8 @@ class Tracker:
         return track
 
     def _confirm_if_due(self, track: Track) -> None:
-        if not track.track_id and track.hits >= self.config.min_hits:
+        needed = self.config.min_hits if track.moved else self.config.min_hits_in_place
+        if not track.track_id and track.hits >= max(self.config.min_hits, needed):
             track.track_id = self._next_id
             self._next_id += 1
 
@@ -240,3 +263,25 @@ def _clip(box: Box, bounds: Box) -> Box:
     x1 = min(box.x + box.w, bounds.x + bounds.w)
     y1 = min(box.y + box.h, bounds.y + bounds.h)
     return Box(x0, y0, max(1, x1 - x0), max(1, y1 - y0))
+
+
+def _robust_velocity(times: list[float], points: list[Point]) -> Point:
+    """Median of the slopes between every pair of samples (Theil-Sen), per axis.
+
+    A least-squares line averages centroid jitter out, but a blob that
+    splits, merges or drags a remnant along jumps its centroid for a frame
+    or a few, and one such jump tilts the whole fit; the median of pairwise
+    slopes stays put until nearly three samples in ten are off.
+    """
+    if len(times) < 2:
+        return (0.0, 0.0)
+    t = np.asarray(times, dtype=np.float64)
+    xy = np.asarray(points, dtype=np.float64)
+    first, second = np.triu_indices(len(t), 1)
+    elapsed = t[second] - t[first]
+    usable = elapsed > 0.0
+    if not usable.any():
+        return (0.0, 0.0)
+    slopes = (xy[second] - xy[first])[usable] / elapsed[usable, None]
+    median = np.median(slopes, axis=0)
+    return (float(median[0]), float(median[1]))

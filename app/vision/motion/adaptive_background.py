@@ -25,15 +25,20 @@ A running-average background (the classic of Motion and of OpenCV's
   beyond what the camera noise explains, taken as the largest in a pixel's
   3x3 neighbourhood, raises that pixel's threshold by the same ``k`` that
   scales the noise: leaves and water get deaf, still pixels keep the plain
-  threshold.
+  threshold. For the first ``learning_frames`` frames the deviation is the
+  plain, unclipped mean of those samples, so a sway is known after one
+  swing; flips deep inside a solid changed region (an object stepping in,
+  a ghost uncovered) do not count then.
 * **Hysteresis** — weaker pixels next to strong ones count too, so
   low-contrast objects come out whole.
 * **Ghost absorption** — moving pixels that do not change from frame to
   frame and match the background of their still neighbours are absorbed at
   once, eating a ghost (something that was in the first frame and left) from
-  its rim inwards; a region that stays "moving" without any change between
-  consecutive frames (a ghost or a stopped object) becomes background after
-  ``absorb_after`` frames.
+  its rim inwards (while the scene is being learned, the neighbours are
+  sought three pixels away, past the deaf rim a start-up ghost has); a
+  region that stays "moving" without any change between consecutive frames
+  (a ghost or a stopped object) becomes background after ``absorb_after``
+  frames.
 
 Per-frame work is done on 8-bit images wherever a grey level is precise
 enough; the float models are only read and accumulated into, so a frame
@@ -84,6 +89,7 @@ class AdaptiveBackground(MotionMethod):
         weak_fraction: float = 0.5,
         absorb_after: int = 30,
         check_every: int = 3,
+        learning_frames: int = 20,
     ) -> None:
         super().__init__(sensitivity)
         # 3.5 sigma, not the usual 4: the per-pixel variability, not a higher
@@ -99,8 +105,12 @@ class AdaptiveBackground(MotionMethod):
         self.weak_fraction = weak_fraction
         self.absorb_after = absorb_after
         self.check_every = check_every
+        self.learning_frames = learning_frames
         self._grow_kernel = cv2.getStructuringElement(cv2.MORPH_ELLIPSE, (5, 5))
         self._neighbour_kernel = np.ones((3, 3), np.uint8)
+        # Three pixels each way: how deep "inside" a region is, and how far a
+        # ghost's rim reaches, while the scene is being learned.
+        self._learning_kernel = np.ones((7, 7), np.uint8)
         self._background: FloatImage | None = None
         self._alternate: FloatImage | None = None
         self._weight: FloatImage | None = None  # 0..255: how often the alternate recurs
@@ -139,12 +149,26 @@ class AdaptiveBackground(MotionMethod):
         mask = self._hysteresis(difference, per_pixel)
         still = cv2.bitwise_not(mask)
 
+        flips = cv2.bitwise_xor(raw, self._previous_raw)
         # Flips (measured at the plain threshold) teach the variability too:
         # without them a pixel that sways past its threshold would never be
         # seen as background, and never learn that it sways.
-        flips = cv2.bitwise_xor(raw, self._previous_raw)
-        cv2.accumulateWeighted(cv2.min(difference, per_pixel), self._deviation, self.deviation_rate,
-                               mask=cv2.bitwise_or(still, flips))
+        teach = cv2.bitwise_or(still, flips)
+        if self._frame_index <= self.learning_frames:
+            # Learning the scene: the plain mean of every sample so far, not
+            # clipped, so swaying is known within one sway instead of after
+            # seconds of false alarms. An object that stops or creeps neither
+            # is still nor flips, so its inside stays sensitive; nor does a
+            # flip deep inside a solid off-background region teach: that is
+            # an object stepping in or a ghost being uncovered, not a sway,
+            # and teaching it would make the region deaf to itself.
+            solid = cv2.erode(raw, self._learning_kernel)
+            teach = cv2.bitwise_or(still, cv2.bitwise_and(flips, cv2.bitwise_not(solid)))
+            cv2.accumulateWeighted(difference, self._deviation, 1.0 / self._frame_index, mask=teach)
+        else:
+            cv2.accumulateWeighted(
+                cv2.min(difference, per_pixel), self._deviation, self.deviation_rate, mask=teach
+            )
         self._update_modes(gray, main, alternate, established, still, threshold)
         changing = threshold_difference(cv2.absdiff(gray, self._previous_gray), threshold)
         self._erode_ghosts(gray, mask, still, changing, threshold)
@@ -183,30 +207,49 @@ class AdaptiveBackground(MotionMethod):
         weak = cv2.compare(difference, weak_threshold, cv2.CMP_GT)
         return cv2.bitwise_and(weak, cv2.dilate(strong, self._grow_kernel))
 
-    def _update_modes(self, gray: GrayImage, main: GrayImage, alternate: GrayImage,
-                      established: Mask, still: Mask, threshold: float) -> None:
+    def _update_modes(
+        self,
+        gray: GrayImage,
+        main: GrayImage,
+        alternate: GrayImage,
+        established: Mask,
+        still: Mask,
+        threshold: float,
+    ) -> None:
         """Teach each still pixel's nearer mode; count and seed alternates."""
         assert self._background is not None and self._alternate is not None
         assert self._weight is not None and self._seed_weight is not None
         assert self._previous_mask is not None
         nearer_alternate = cv2.bitwise_and(established, cv2.compare(alternate, main, cv2.CMP_LT))
-        cv2.accumulateWeighted(gray, self._background, self.learning_rate,
-                               mask=cv2.bitwise_and(still, cv2.bitwise_not(nearer_alternate)))
-        cv2.accumulateWeighted(gray, self._alternate, self.learning_rate,
-                               mask=cv2.bitwise_and(still, nearer_alternate))
+        cv2.accumulateWeighted(
+            gray,
+            self._background,
+            self.learning_rate,
+            mask=cv2.bitwise_and(still, cv2.bitwise_not(nearer_alternate)),
+        )
+        cv2.accumulateWeighted(
+            gray, self._alternate, self.learning_rate, mask=cv2.bitwise_and(still, nearer_alternate)
+        )
         # Recurrence: a match counts only right after a background frame.
-        matches = cv2.bitwise_and(cv2.compare(alternate, _scalar(threshold), cv2.CMP_LE),
-                                  cv2.compare(alternate, main, cv2.CMP_LT))
-        cv2.accumulateWeighted(cv2.bitwise_and(matches, cv2.bitwise_not(self._previous_mask)),
-                               self._weight, self.mode_rate)
+        matches = cv2.bitwise_and(
+            cv2.compare(alternate, _scalar(threshold), cv2.CMP_LE),
+            cv2.compare(alternate, main, cv2.CMP_LT),
+        )
+        cv2.accumulateWeighted(
+            cv2.bitwise_and(matches, cv2.bitwise_not(self._previous_mask)),
+            self._weight,
+            self.mode_rate,
+        )
         # A value that matches neither mode replaces a weak alternate.
-        unmatched = cv2.bitwise_and(threshold_difference(cv2.min(main, alternate), threshold),
-                                    cv2.bitwise_not(established))
+        unmatched = cv2.bitwise_and(
+            threshold_difference(cv2.min(main, alternate), threshold), cv2.bitwise_not(established)
+        )
         cv2.accumulateWeighted(gray, self._alternate, 1.0, mask=unmatched)
         cv2.copyTo(self._seed_weight, unmatched, self._weight)
 
-    def _erode_ghosts(self, gray: GrayImage, mask: Mask, still: Mask, changing: Mask,
-                      threshold: float) -> None:
+    def _erode_ghosts(
+        self, gray: GrayImage, mask: Mask, still: Mask, changing: Mask, threshold: float
+    ) -> None:
         """Absorb moving pixels that look like the background right next to them.
 
         Where something sat in the first frame and left, the uncovered
@@ -216,6 +259,14 @@ class AdaptiveBackground(MotionMethod):
         ghost does not change from frame to frame, pixels that change are
         left alone, or the soft rim of a faint moving object would be eaten
         and leave a trail behind it.
+
+        While the scene is being learned the neighbours are sought up to
+        three pixels away instead of one. The background is then the first
+        frame, so ghosts are to be expected, and the variability learned
+        while their object left has made their rim deaf: still, yet keeping
+        the object's value in its background, that rim hides the true
+        background from a 3x3 search and the ghost would stay for seconds.
+        Afterwards the 3x3 search keeps the rims of real objects safe.
         """
         assert self._background is not None
         if not cv2.countNonZero(mask):
@@ -223,11 +274,15 @@ class AdaptiveBackground(MotionMethod):
         background = cv2.convertScaleAbs(self._background)
         # Moving pixels become 255 for the minimum and 0 for the maximum, so
         # only still neighbours set the range.
-        lowest = cv2.erode(cv2.max(background, mask), self._neighbour_kernel)
-        highest = cv2.dilate(cv2.bitwise_and(background, still), self._neighbour_kernel)
+        learning = self._frame_index <= self.learning_frames
+        kernel = self._learning_kernel if learning else self._neighbour_kernel
+        lowest = cv2.erode(cv2.max(background, mask), kernel)
+        highest = cv2.dilate(cv2.bitwise_and(background, still), kernel)
         margin = _scalar(threshold * self.weak_fraction)
-        inside = cv2.bitwise_and(cv2.compare(gray, cv2.subtract(lowest, margin), cv2.CMP_GE),
-                                 cv2.compare(gray, cv2.add(highest, margin), cv2.CMP_LE))
+        inside = cv2.bitwise_and(
+            cv2.compare(gray, cv2.subtract(lowest, margin), cv2.CMP_GE),
+            cv2.compare(gray, cv2.add(highest, margin), cv2.CMP_LE),
+        )
         ghost = cv2.bitwise_and(cv2.bitwise_and(mask, inside), cv2.bitwise_not(changing))
         cv2.accumulateWeighted(gray, self._background, 1.0, mask=ghost)
 

@@ -26,7 +26,7 @@ import numpy as np
 from scipy.optimize import linear_sum_assignment
 
 from app.vision.detections import Box, Detection
-from app.vision.kinematics import speed
+from app.vision.kinematics import fit_velocity, speed
 
 Point = tuple[float, float]
 
@@ -227,7 +227,7 @@ class Tracker:
             for t, c in zip(track.times, track.centroids, strict=True)
             if time_s - t <= self.config.smoothing_window_s
         ]
-        track.velocity = _robust_velocity([t for t, _ in window], [c for _, c in window])
+        track.velocity = fit_velocity([t for t, _ in window], [c for _, c in window])
         self._confirm_if_due(track)
         if not track.track_id:
             return None
@@ -263,25 +263,3 @@ def _clip(box: Box, bounds: Box) -> Box:
     x1 = min(box.x + box.w, bounds.x + bounds.w)
     y1 = min(box.y + box.h, bounds.y + bounds.h)
     return Box(x0, y0, max(1, x1 - x0), max(1, y1 - y0))
-
-
-def _robust_velocity(times: list[float], points: list[Point]) -> Point:
-    """Median of the slopes between every pair of samples (Theil-Sen), per axis.
-
-    A least-squares line averages centroid jitter out, but a blob that
-    splits, merges or drags a remnant along jumps its centroid for a frame
-    or a few, and one such jump tilts the whole fit; the median of pairwise
-    slopes stays put until nearly three samples in ten are off.
-    """
-    if len(times) < 2:
-        return (0.0, 0.0)
-    t = np.asarray(times, dtype=np.float64)
-    xy = np.asarray(points, dtype=np.float64)
-    first, second = np.triu_indices(len(t), 1)
-    elapsed = t[second] - t[first]
-    usable = elapsed > 0.0
-    if not usable.any():
-        return (0.0, 0.0)
-    slopes = (xy[second] - xy[first])[usable] / elapsed[usable, None]
-    median = np.median(slopes, axis=0)
-    return (float(median[0]), float(median[1]))

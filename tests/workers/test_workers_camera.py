@@ -38,6 +38,29 @@ def _worker(parts: dict[str, Any], source: str, **camera: Any) -> CameraWorker:
     return CameraWorker(row, parts["settings"], db, parts["snapshots"], parts["bus"])
 
 
+def _messages_until_motion_end(parts: dict[str, Any], worker: CameraWorker) -> list[dict[str, Any]]:
+    """Activate the camera and collect the bus's messages until the first event ends."""
+    received: list[dict[str, Any]] = []
+
+    async def listen() -> None:
+        queue = parts["bus"].subscribe()
+        worker.set_active(True)
+        while True:
+            message = await asyncio.wait_for(queue.get(), 15)
+            assert message is not None
+            received.append(message)
+            if message["type"] == "motion_end":
+                return
+
+    worker.start()
+    try:
+        asyncio.run(listen())
+    finally:
+        worker.request_stop()
+        worker.join(5)
+    return received
+
+
 def test_frames_are_encoded_only_when_watched_and_once(
     parts: dict[str, Any], tmp_path: Path
 ) -> None:
@@ -60,25 +83,8 @@ def test_frames_are_encoded_only_when_watched_and_once(
 
 
 def test_alarm_writes_event_and_snapshots(parts: dict[str, Any], tmp_path: Path) -> None:
-    received: list[dict[str, Any]] = []
-
-    async def listen() -> None:
-        queue = parts["bus"].subscribe()
-        worker.set_active(True)
-        while True:
-            message = await asyncio.wait_for(queue.get(), 15)
-            assert message is not None
-            received.append(message)
-            if message["type"] == "motion_end":
-                return
-
     worker = _worker(parts, str(write_video(tmp_path / "v.avi")))
-    worker.start()
-    try:
-        asyncio.run(listen())
-    finally:
-        worker.request_stop()
-        worker.join(5)
+    received = _messages_until_motion_end(parts, worker)
     (alarm,) = [m for m in received if m["type"] == "alarm"]
     db: Database = parts["db"]
     (event,) = db.events()
@@ -156,25 +162,8 @@ def test_each_new_object_in_an_open_event_gives_its_own_alarm(
         ),
     )  # fmt: skip
     video = write_scene_video(scene, tmp_path / "two.avi")
-    received: list[dict[str, Any]] = []
-
-    async def listen() -> None:
-        queue = parts["bus"].subscribe()
-        worker.set_active(True)
-        while True:
-            message = await asyncio.wait_for(queue.get(), 15)
-            assert message is not None
-            received.append(message)
-            if message["type"] == "motion_end":
-                return
-
     worker = _worker(parts, str(video))
-    worker.start()
-    try:
-        asyncio.run(listen())
-    finally:
-        worker.request_stop()
-        worker.join(5)
+    received = _messages_until_motion_end(parts, worker)
     alarms = [m for m in received if m["type"] == "alarm"]
     assert len(alarms) == 2
     assert alarms[0]["event_id"] == alarms[1]["event_id"]

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 from collections.abc import Sequence
+from functools import lru_cache
 
 import numpy as np
 
@@ -19,18 +20,32 @@ def fit_velocity(
     such jump tilts a least-squares line; the median of pairwise slopes stays
     put until nearly three samples in ten are off.
     """
-    if len(times) < 2:
+    count = len(times)
+    if count < 2:
         return (0.0, 0.0)
     t = np.asarray(times, dtype=np.float64)
     xy = np.asarray(points, dtype=np.float64)
-    first, second = np.triu_indices(len(t), 1)
+    first, second = _pairs(count)
     elapsed = t[second] - t[first]
+    slopes = xy[second] - xy[first]
     usable = elapsed > 0.0
-    if not usable.any():
-        return (0.0, 0.0)
-    slopes = (xy[second] - xy[first])[usable] / elapsed[usable, None]
-    median = np.median(slopes, axis=0)
+    if not usable.all():
+        if not usable.any():
+            return (0.0, 0.0)
+        slopes, elapsed = slopes[usable], elapsed[usable]
+    slopes /= elapsed[:, None]
+    # A sort and the middle row: np.median costs more than the fit on arrays this small.
+    slopes.sort(axis=0)
+    middle = len(slopes) // 2
+    median = slopes[middle] if len(slopes) % 2 else (slopes[middle - 1] + slopes[middle]) / 2
     return (float(median[0]), float(median[1]))
+
+
+@lru_cache(maxsize=64)
+def _pairs(count: int) -> tuple[np.ndarray, np.ndarray]:
+    """Index pairs (i < j) of ``count`` samples."""
+    first, second = np.triu_indices(count, 1)
+    return first, second
 
 
 def speed(velocity: tuple[float, float]) -> float:

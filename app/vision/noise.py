@@ -22,7 +22,10 @@ HALF_NORMAL_MEDIAN = 0.6745
 
 def noise_sigma(difference: GrayImage) -> float:
     """Robust noise standard deviation of an absolute difference image."""
-    hist = cv2.calcHist([difference], [0], None, [256], [0, 256]).ravel()
+    # Every other row and column: the median of a quarter of the pixels is as
+    # good an estimate, at a quarter of the cost.
+    sample = np.ascontiguousarray(difference[::2, ::2])
+    hist = cv2.calcHist([sample], [0], None, [256], [0, 256]).ravel()
     cumulative = np.cumsum(hist)
     half = cumulative[-1] / 2.0
     level = int(np.searchsorted(cumulative, half))

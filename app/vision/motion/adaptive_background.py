@@ -88,7 +88,7 @@ class AdaptiveBackground(MotionMethod):
         deviation_rate: float = 0.1,
         weak_fraction: float = 0.5,
         absorb_after: int = 30,
-        check_every: int = 3,
+        check_every: int = 6,
         learning_frames: int = 20,
     ) -> None:
         super().__init__(sensitivity)
@@ -188,7 +188,7 @@ class AdaptiveBackground(MotionMethod):
         assert self._deviation is not None and self._scratch is not None
         k = self.noise.k
         noise_deviation = MEAN_ABS_NOISE * (self.noise.sigma or 0.0)
-        np.maximum(self._deviation, noise_deviation, out=self._scratch)
+        cv2.max(self._deviation, _scalar(noise_deviation), dst=self._scratch)
         # Rounded down (the -0.5): "difference > per_pixel" in grey levels
         # then means what it means for the float threshold.
         offset = threshold - k * noise_deviation - 0.5

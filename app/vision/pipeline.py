@@ -9,7 +9,9 @@ from __future__ import annotations
 
 import time
 from collections import defaultdict, deque
+from collections.abc import Callable
 from dataclasses import dataclass, field, replace
+from typing import ParamSpec, TypeVar
 
 from app.vision.blobs import BlobExtractor
 from app.vision.calibration import GroundPlane, GroundTracker
@@ -133,14 +135,18 @@ class Pipeline:
         self._index = 0
 
 
+P = ParamSpec("P")
+R = TypeVar("R")
+
+
 class _StageClock:
     """Times each stage call into a shared per-stage list (seconds)."""
 
     def __init__(self, timings: dict[str, deque[float]]) -> None:
         self.timings = timings
 
-    def __call__(self, stage: str, fn, *args):  # type: ignore[no-untyped-def]
+    def __call__(self, stage: str, fn: Callable[P, R], *args: P.args, **kwargs: P.kwargs) -> R:
         start = time.perf_counter()
-        result = fn(*args)
+        result = fn(*args, **kwargs)
         self.timings[stage].append(time.perf_counter() - start)
         return result

@@ -61,6 +61,9 @@ class Scorer:
             "kind": self.truth.kind,
             "frames_scored": self.frames_scored,
             "warm_up_frames": WARM_UP_FRAMES,
+            # The paper's two figures up front (all frames); the detail follows.
+            "detection_rate": self.objects.detection_rate,
+            "false_alarm_rate": self.objects.false_alarm_rate,
             "objects": self.objects.as_dict(),
             "objects_after_warm_up": self.objects_warm.as_dict(),
         }

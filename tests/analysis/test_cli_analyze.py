@@ -125,6 +125,7 @@ def test_report_json_carries_settings_stats_timings_and_rates(analysed):
     assert report["timings"]["frames_per_s"] > 0
     assert "segment" in report["timings"]["median_stage_ms"]
     objects = report["evaluation"]["objects"]
+    assert report["evaluation"]["detection_rate"] == objects["detection_rate"]
     assert objects["detection_rate"] >= 0.95
     assert objects["false_alarm_rate"] <= 0.05
 

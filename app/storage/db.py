@@ -26,7 +26,8 @@ CREATE TABLE IF NOT EXISTS cameras (
     method TEXT NOT NULL,
     show_mask INTEGER NOT NULL DEFAULT 0,
     active INTEGER NOT NULL DEFAULT 0,
-    created_at REAL NOT NULL
+    created_at REAL NOT NULL,
+    mask TEXT NOT NULL DEFAULT '[]'
 );
 CREATE TABLE IF NOT EXISTS events (
     id INTEGER PRIMARY KEY AUTOINCREMENT,
@@ -60,7 +61,18 @@ CREATE TABLE IF NOT EXISTS analyses (
 );
 """
 
-CAMERA_FIELDS = ("name", "source", "sensitivity", "min_area", "method", "show_mask", "active")
+CAMERA_FIELDS = (
+    "name",
+    "source",
+    "sensitivity",
+    "min_area",
+    "method",
+    "show_mask",
+    "active",
+    "mask",
+)
+# Columns added after the first release, with their definitions, for older databases.
+ADDED_CAMERA_COLUMNS = {"mask": "TEXT NOT NULL DEFAULT '[]'"}
 
 
 class Database:
@@ -74,6 +86,13 @@ class Database:
         self._conn.execute("PRAGMA synchronous=NORMAL")
         self._conn.execute("PRAGMA busy_timeout=5000")
         self._conn.executescript(SCHEMA)
+        self._add_missing_columns()
+
+    def _add_missing_columns(self) -> None:
+        present = {row["name"] for row in self._conn.execute("PRAGMA table_info(cameras)")}
+        for column, definition in ADDED_CAMERA_COLUMNS.items():
+            if column not in present:
+                self._conn.execute(f"ALTER TABLE cameras ADD COLUMN {column} {definition}")
 
     def close(self) -> None:
         with self._lock:
@@ -127,6 +146,8 @@ class Database:
         unknown = set(fields) - set(CAMERA_FIELDS)
         if unknown:
             raise ValueError(f"unknown camera fields: {sorted(unknown)}")
+        if "mask" in fields:
+            fields["mask"] = json.dumps(fields["mask"] or [])
         if fields:
             assignments = ", ".join(f"{k} = ?" for k in fields)
             with self._tx() as conn:
@@ -296,6 +317,7 @@ def _filters(
 def _camera(row: sqlite3.Row) -> dict[str, Any]:
     out = dict(row)
     out["show_mask"] = bool(out["show_mask"])
+    out["mask"] = json.loads(out["mask"])
     out["active"] = bool(out["active"])
     return out
 

@@ -2,7 +2,7 @@
 
 frame -> grayscale -> histogram statistics -> downscale -> noise removal
       -> contrast enhancement -> segmentation (method + threshold)
-      -> morphology -> blobs (min area) -> tracking -> calibration
+      -> ignore zones -> morphology -> blobs (min area) -> tracking -> calibration
 """
 
 from __future__ import annotations
@@ -22,6 +22,7 @@ from app.vision.motion import DEFAULT_METHOD, MotionResult, create_method
 from app.vision.preprocess import Denoise, DenoiseMethod, Downscale, Enhance, EnhanceMethod, to_gray
 from app.vision.tracker import Tracker, TrackerConfig
 from app.vision.types import GrayImage, Image, Mask
+from app.vision.zones import IgnoreZones, Polygon
 
 TIMING_SAMPLES = 5000
 """Per-stage timings kept (the most recent), enough for stable medians."""
@@ -41,6 +42,8 @@ class PipelineConfig:
     """Detection runs on frames at most this wide (0 = full size); boxes are mapped back."""
     open_kernel: int = 3
     close_kernel: int = 5
+    ignore_zones: tuple[Polygon, ...] = ()
+    """Polygons (fractions of the frame) where motion does not count."""
     tracker: TrackerConfig = field(default_factory=TrackerConfig)
 
 
@@ -76,6 +79,7 @@ class Pipeline:
         self.denoise = Denoise(self.config.denoise, self.config.denoise_kernel)
         self.enhance = Enhance(self.config.enhance)
         self.method = create_method(self.config.method, self.config.sensitivity)
+        self.zones = IgnoreZones(self.config.ignore_zones)
         self.morphology = Morphology(self.config.open_kernel, self.config.close_kernel)
         self.blobs = BlobExtractor(self.config.min_area)
         self.tracker = Tracker(self.config.tracker)
@@ -92,6 +96,10 @@ class Pipeline:
     def set_min_area(self, min_area: float) -> None:
         self.blobs = BlobExtractor(min_area)
         self.config = replace(self.config, min_area=min_area)
+
+    def set_ignore_zones(self, polygons: tuple[Polygon, ...]) -> None:
+        self.zones = IgnoreZones(polygons)
+        self.config = replace(self.config, ignore_zones=polygons)
 
     def set_method(self, name: str) -> None:
         """Swap the segmentation method (it learns the scene afresh); tracks carry on."""
@@ -111,7 +119,8 @@ class Pipeline:
         small = clock("denoise", self.denoise, small)
         small = clock("enhance", self.enhance, small)
         motion: MotionResult = clock("segment", self.method.apply, small)
-        mask = clock("morphology", self.morphology, motion.mask)
+        mask = clock("zones", self.zones, motion.mask)
+        mask = clock("morphology", self.morphology, mask)
         blobs = clock("blobs", self.blobs, mask, scale)
         detections = clock("track", self.tracker.update, blobs, time_s)
         if self.ground is not None:

@@ -26,12 +26,13 @@ from app.vision.annotate import Annotator
 from app.vision.detections import Detection
 from app.vision.pipeline import FrameResult, Pipeline, PipelineConfig
 from app.vision.types import Image
+from app.vision.zones import as_polygons
 from app.workers.bus import EventBus
 from app.workers.hub import EncodeCounter, FrameHub, LiveFrame, encode_jpeg
 
 log = logging.getLogger("vigil.camera")
 
-SETTING_FIELDS = ("sensitivity", "min_area", "method", "show_mask")
+SETTING_FIELDS = ("sensitivity", "min_area", "method", "show_mask", "mask")
 
 
 class CameraWorker:
@@ -253,12 +254,15 @@ class CameraWorker:
             pipeline.set_sensitivity(self._config["sensitivity"])
         if self._config["min_area"] != old["min_area"]:
             pipeline.set_min_area(float(self._config["min_area"]))
+        if self._config["mask"] != old["mask"]:
+            pipeline.set_ignore_zones(as_polygons(self._config["mask"]))
 
     def _new_pipeline(self, fps: float) -> Pipeline:
         config = PipelineConfig(
             method=self._config["method"],
             sensitivity=self._config["sensitivity"],
             min_area=float(self._config["min_area"]),
+            ignore_zones=as_polygons(self._config["mask"]),
         )
         return Pipeline(config, fps)
 

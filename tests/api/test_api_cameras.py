@@ -112,3 +112,24 @@ def test_password_protects_everything_but_health(serve: Callable[..., Running]) 
     assert httpx.get(f"{server.base}/api/cameras").status_code == 401
     assert httpx.get(f"{server.base}/api/cameras", auth=("x", "wrong")).status_code == 401
     assert httpx.get(f"{server.base}/api/cameras", auth=("x", "s3cret")).status_code == 200
+
+
+def test_ignore_zones_persist_and_bad_ones_are_refused(
+    serve: Callable[..., Running], tmp_path: Path
+) -> None:
+    data = tmp_path / "data"
+    server = serve(data)
+    cam_id = httpx.post(
+        f"{server.base}/api/cameras", json={"name": "garden", "source": "demo"}
+    ).json()["id"]
+    zone = [[[0.0, 0.0], [0.5, 0.0], [0.5, 1.0], [0.0, 1.0]]]
+    changed = httpx.patch(f"{server.base}/api/cameras/{cam_id}", json={"mask": zone})
+    assert changed.status_code == 200 and changed.json()["mask"] == zone
+    for bad in ([[[0, 0], [1, 0]]], [[[0, 0], [3, 0], [1, 1]]], "left half"):
+        refused = httpx.patch(f"{server.base}/api/cameras/{cam_id}", json={"mask": bad})
+        assert refused.status_code == 422, bad
+    server.stop()
+    again = serve(data)
+    assert httpx.get(f"{again.base}/api/cameras/{cam_id}").json()["mask"] == zone
+    cleared = httpx.patch(f"{again.base}/api/cameras/{cam_id}", json={"mask": None}).json()
+    assert cleared["mask"] == []

@@ -119,3 +119,23 @@ def test_prune_removes_old_snapshots_and_events(tmp_path: Path) -> None:
     assert not store.path(old).exists() and store.path(new).exists()
     assert sorted(e["id"] for e in db.events()) == [open_event, new_event]
     db.close()
+
+
+def test_a_database_from_before_ignore_zones_gains_the_column(tmp_path: Path) -> None:
+    path = tmp_path / "old.db"
+    old = sqlite3.connect(path)
+    old.execute(
+        "CREATE TABLE cameras (id INTEGER PRIMARY KEY AUTOINCREMENT, name TEXT NOT NULL,"
+        " source TEXT NOT NULL, sensitivity REAL, min_area REAL NOT NULL DEFAULT 100,"
+        " method TEXT NOT NULL, show_mask INTEGER NOT NULL DEFAULT 0,"
+        " active INTEGER NOT NULL DEFAULT 0, created_at REAL NOT NULL)"
+    )
+    old.execute(
+        "INSERT INTO cameras (name, source, method, created_at)"
+        " VALUES ('cam', 'demo', 'adaptive', 0)"
+    )
+    old.commit()
+    old.close()
+    db = Database(path)
+    (camera,) = db.cameras()
+    assert camera["name"] == "cam" and camera["mask"] == []

@@ -10,6 +10,7 @@ from pydantic import BaseModel, Field, field_validator
 from app.api.services import services
 from app.sources.live import parse_source
 from app.vision.motion import DEFAULT_METHOD, METHODS
+from app.vision.zones import as_polygons
 
 router = APIRouter(prefix="/api/cameras", tags=["cameras"])
 
@@ -46,8 +47,17 @@ class CameraPatch(BaseModel):
     min_area: float | None = Field(default=None, ge=0)
     method: str | None = None
     show_mask: bool | None = None
+    mask: list[list[list[float]]] | None = Field(default=None, max_length=64)
+    """Ignore zones: polygons of [x, y] fractions of the frame; null or [] clears them."""
 
     _method = field_validator("method")(_check_method)
+
+    @field_validator("mask")
+    @classmethod
+    def _check_mask(cls, value: list[list[list[float]]] | None) -> list[list[list[float]]]:
+        polygons = as_polygons(value or [])
+        return [[list(point) for point in polygon] for polygon in polygons]
+
     _source = field_validator("source")(_check_source)
 
 

@@ -5,7 +5,6 @@ from __future__ import annotations
 import argparse
 import ipaddress
 import json
-import os
 import sys
 from collections.abc import Sequence
 from pathlib import Path
@@ -262,9 +261,7 @@ def _serve(args: argparse.Namespace) -> int:
     if args.data is not None:
         overrides["data_dir"] = args.data
     settings = Settings(**overrides)
-    if not _is_loopback(settings.host) and not (
-        settings.password or os.environ.get("VIGIL_PASSWORD")
-    ):
+    if not _is_loopback(settings.host) and not settings.password:  # Settings reads VIGIL_PASSWORD
         return _fail(
             "serve",
             f"refusing to listen on {settings.host} without a password: "

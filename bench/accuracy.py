@@ -25,7 +25,6 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from statistics import fmean
 
-import cv2
 from _common import (
     Cell,
     add_data_argument,
@@ -45,6 +44,7 @@ from app.sources.files import open_input
 from app.sources.synthetic import Scene, standard_scenes
 from app.vision.metrics import DEFAULT_IOU, ObjectCounts, PixelCounts, match_boxes
 from app.vision.motion import DEFAULT_METHOD
+from app.vision.preprocess import to_size
 from app.vision.types import Image, Mask
 
 REFERENCE = "knn"
@@ -103,21 +103,15 @@ def load_set(data_dir: Path, real_set: RealSet) -> LoadedSet:
     return LoadedSet(real_set.name, list(video.frames()), video.fps, labels, truth.roi)
 
 
-def fit_to(mask: Mask, shape: tuple[int, ...]) -> Mask:
-    """A mask at another resolution (detection runs on a downscaled frame)."""
-    if mask.shape[:2] == shape[:2]:
-        return mask
-    return cv2.resize(mask, (shape[1], shape[0]), interpolation=cv2.INTER_NEAREST)
-
-
 def score_pixels(loaded: LoadedSet, method: str, warmup: int) -> PixelScore:
     score = PixelScore()
     for result in run_pipeline(method, loaded.frames, loaded.fps):
         label = loaded.labels.get(result.index)
         if label is None:
             continue
-        mask = fit_to(result.mask, label.shape)
-        roi = fit_to(loaded.roi, label.shape) if loaded.roi is not None else None
+        size = (label.shape[1], label.shape[0])
+        mask = to_size(result.mask, size)
+        roi = to_size(loaded.roi, size) if loaded.roi is not None else None
         score.all_frames.add(mask, label, roi)
         score.frames_all += 1
         if result.index >= warmup:

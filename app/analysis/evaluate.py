@@ -29,7 +29,6 @@ def evaluate(out_dir: Path, truth_path: Path) -> dict[str, Any]:
         )
     try:
         report = json.loads(report_path.read_text())
-        size = (int(report["size"][0]), int(report["size"][1]))
         frames = int(report["frames"])
         min_area = float(report["settings"]["min_area"])
     except (OSError, ValueError, KeyError, TypeError) as exc:
@@ -37,7 +36,7 @@ def evaluate(out_dir: Path, truth_path: Path) -> dict[str, Any]:
     truth = load_truth(truth_path, report.get("frame_numbers"))
     boxes = _boxes_by_frame(tracks_path)
     masks_dir = out_dir / "masks"
-    scorer = Scorer(truth, size, min_area)
+    scorer = Scorer(truth, min_area)
     for index in truth.frames:
         if index >= frames:
             continue

@@ -2,15 +2,13 @@
 
 from __future__ import annotations
 
+import math
 import statistics
 import time
 from collections.abc import Callable
 from dataclasses import asdict, dataclass, field
 from pathlib import Path
 from typing import Any
-
-import cv2
-import numpy as np
 
 import app
 from app.analysis.outputs import AnnotatedVideo, TracksCsv, write_image, write_json
@@ -19,11 +17,12 @@ from app.analysis.scoring import Scorer
 from app.analysis.truth import Truth, load_truth
 from app.events.alarm import AlarmLogic, MotionEvent
 from app.sources.files import VideoInput, open_input
-from app.vision.annotate import Annotator
+from app.vision.annotate import Annotator, difference_picture
 from app.vision.calibration import GroundPlane
 from app.vision.detections import Detection
 from app.vision.pipeline import FrameResult, Pipeline, PipelineConfig
-from app.vision.types import Image, Mask
+from app.vision.preprocess import to_size
+from app.vision.types import Image
 
 Progress = Callable[[int, int | None], None]
 """Called with (frames done, frames expected or None) as the analysis goes."""
@@ -67,13 +66,7 @@ class _TrackSummary:
         self.path.append(d.centroid)
         if d.ground_xy_m is not None:
             if self.last_ground is not None:
-                self.distance_m += float(
-                    (
-                        (d.ground_xy_m[0] - self.last_ground[0]) ** 2
-                        + (d.ground_xy_m[1] - self.last_ground[1]) ** 2
-                    )
-                    ** 0.5
-                )
+                self.distance_m += math.dist(d.ground_xy_m, self.last_ground)
             self.last_ground = d.ground_xy_m
             if d.speed_m_s is not None:
                 self.speeds_m_s.append(d.speed_m_s)
@@ -150,7 +143,7 @@ class _Analysis:
         self.events: list[dict[str, Any]] = []
         self.tracks: dict[int, _TrackSummary] = {}
         self.frame_stats: list[dict[str, Any]] = []
-        self.scoring = Scorer(truth, source.size, options.pipeline.min_area) if truth else None
+        self.scoring = Scorer(truth, options.pipeline.min_area) if truth else None
         self.first_frame: Image | None = None
         self.key_frames: list[dict[str, Any]] = []
 
@@ -188,11 +181,12 @@ class _Analysis:
 
     def _record(self, result: FrameResult, annotated: Image) -> None:
         index, time_s = result.index, result.time_s
-        mask_full = self._full_size(result.mask)
-        if self.options.masks:
-            write_image(self.out / "masks" / f"{index:06d}.png", mask_full)
-        if self.scoring is not None:
-            self.scoring.add(index, [d.box for d in result.detections], mask_full)
+        if self.options.masks or self.scoring is not None:
+            mask_full = to_size(result.mask, self.source.size)
+            if self.options.masks:
+                write_image(self.out / "masks" / f"{index:06d}.png", mask_full)
+            if self.scoring is not None:
+                self.scoring.add(index, [d.box for d in result.detections], mask_full)
         motion_area = sum(d.area for d in result.detections)
         self.frame_stats.append(
             {
@@ -220,17 +214,10 @@ class _Analysis:
         if update.ended is not None:
             self._close_event(update.ended)
 
-    def _full_size(self, mask: Mask) -> Mask:
-        width, height = self.source.size
-        if (mask.shape[1], mask.shape[0]) == (width, height):
-            return mask
-        return cv2.resize(mask, (width, height), interpolation=cv2.INTER_NEAREST)
-
     def _snapshot(self, event: MotionEvent, annotated: Image, result: FrameResult) -> None:
         name = f"event-{event.id:04d}.jpg"
         write_image(self.out / "snapshots" / name, annotated)
-        difference = self._full_size(result.difference)
-        difference = cv2.normalize(difference, np.empty_like(difference), 0, 255, cv2.NORM_MINMAX)
+        difference = difference_picture(result.difference, self.source.size)
         write_image(self.out / "differences" / name, difference)
         self.key_frames.append(
             {"event": event.id, "frame": result.index, "snapshot": f"snapshots/{name}"}

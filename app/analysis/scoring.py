@@ -4,11 +4,10 @@ from __future__ import annotations
 
 from typing import Any
 
-import cv2
-
 from app.analysis.truth import Truth
 from app.vision.detections import Box
 from app.vision.metrics import ObjectCounts, PixelCounts
+from app.vision.preprocess import to_size
 from app.vision.types import Mask
 
 WARM_UP_FRAMES = 20
@@ -18,17 +17,12 @@ WARM_UP_FRAMES = 20
 class Scorer:
     """DR/FAR per object per frame, and CDnet pixel metrics when truth is masks."""
 
-    def __init__(self, truth: Truth, size: tuple[int, int], min_area: float) -> None:
+    def __init__(self, truth: Truth, min_area: float) -> None:
         self.truth = truth
-        self.size = size
         self.min_area = min_area
         self.objects, self.objects_warm = ObjectCounts(), ObjectCounts()
         self.pixels, self.pixels_warm = PixelCounts(), PixelCounts()
         self.frames_scored = 0
-        roi = truth.roi
-        if roi is not None and (roi.shape[1], roi.shape[0]) != size:
-            roi = cv2.resize(roi, size, interpolation=cv2.INTER_NEAREST)
-        self.roi = roi
 
     def add(self, index: int, boxes: list[Box], mask: Mask | None) -> None:
         """Score one frame's reported boxes and (when truth has masks) its motion mask."""
@@ -42,15 +36,9 @@ class Scorer:
             self.objects_warm.add(true_boxes, boxes)
         label = self.truth.mask(index) if mask is not None else None
         if label is not None and mask is not None:
-            if (label.shape[1], label.shape[0]) != (mask.shape[1], mask.shape[0]):
-                mask = cv2.resize(
-                    mask, (label.shape[1], label.shape[0]), interpolation=cv2.INTER_NEAREST
-                )
-            roi = self.roi
-            if roi is not None and roi.shape != label.shape:
-                roi = cv2.resize(
-                    roi, (label.shape[1], label.shape[0]), interpolation=cv2.INTER_NEAREST
-                )
+            size = (label.shape[1], label.shape[0])
+            mask = to_size(mask, size)
+            roi = to_size(self.truth.roi, size) if self.truth.roi is not None else None
             self.pixels.add(mask, label, roi)
             if warm:
                 self.pixels_warm.add(mask, label, roi)

@@ -18,7 +18,6 @@ input's own frame files carry numbers (CDnet ``inNNNNNN.jpg``), else by order
 from __future__ import annotations
 
 import json
-import re
 from collections.abc import Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -26,10 +25,10 @@ from pathlib import Path
 import cv2
 import numpy as np
 
+from app.sources.files import frame_number
 from app.vision.detections import Box
 from app.vision.types import Mask
 
-_NUMBER = re.compile(r"(\d+)\D*$")
 MASK_SUFFIXES = (".png", ".bmp", ".jpg", ".jpeg", ".tif", ".tiff", ".pgm")
 
 
@@ -77,11 +76,6 @@ def boxes_from_mask(moving: np.ndarray, min_area: float) -> list[Box]:
         for x, y, w, h, area in stats[1:count]
         if area >= min_area
     ]
-
-
-def frame_number(path: Path) -> int | None:
-    match = _NUMBER.search(path.stem)
-    return int(match.group(1)) if match else None
 
 
 def load_truth(path: Path, input_frame_numbers: Sequence[int | None] | None = None) -> Truth:

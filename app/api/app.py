@@ -15,6 +15,7 @@ from pathlib import Path
 from typing import Any
 
 from fastapi import FastAPI
+from fastapi.responses import JSONResponse, PlainTextResponse
 from fastapi.staticfiles import StaticFiles
 from starlette.types import ASGIApp, Receive, Scope, Send
 
@@ -73,20 +74,12 @@ class UploadLimit:
         ):
             length = dict(scope.get("headers", [])).get(b"content-length", b"")
             if length.isdigit() and int(length) > self.limit + self.SLACK:
-                body = (
-                    f'{{"detail": "upload larger than {self.limit // (1024 * 1024)} MB"}}'
-                ).encode()
-                await send(
-                    {
-                        "type": "http.response.start",
-                        "status": 413,
-                        "headers": [
-                            (b"content-type", b"application/json"),
-                            (b"connection", b"close"),
-                        ],
-                    }
+                refusal = JSONResponse(
+                    {"detail": f"upload larger than {self.limit // (1024 * 1024)} MB"},
+                    status_code=413,
+                    headers={"Connection": "close"},
                 )
-                await send({"type": "http.response.body", "body": body})
+                await refusal(scope, receive, send)
                 return
         await self.app(scope, receive, send)
 
@@ -139,17 +132,12 @@ class BasicAuth:
         if scope["type"] == "websocket":
             await send({"type": "websocket.close", "code": 1008})
             return
-        await send(
-            {
-                "type": "http.response.start",
-                "status": 401,
-                "headers": [
-                    (b"www-authenticate", b'Basic realm="vigil"'),
-                    (b"content-type", b"text/plain"),
-                ],
-            }
+        refusal = PlainTextResponse(
+            "password required",
+            status_code=401,
+            headers={"WWW-Authenticate": 'Basic realm="vigil"'},
         )
-        await send({"type": "http.response.body", "body": b"password required"})
+        await refusal(scope, receive, send)
 
     def _authorised(self, scope: Scope) -> bool:
         for name, value in scope.get("headers", []):

@@ -6,17 +6,33 @@ hold 68): frames are decoded until the reader stops.
 
 from __future__ import annotations
 
+import math
+import re
 from collections.abc import Iterator
 from dataclasses import dataclass
 from pathlib import Path
 
 import cv2
 
-from app.analysis.truth import frame_number
 from app.vision.types import Image
 
 IMAGE_SUFFIXES = (".jpg", ".jpeg", ".png", ".bmp", ".tif", ".tiff", ".pgm", ".ppm", ".webp")
-DEFAULT_FOLDER_FPS = 25.0
+DEFAULT_FPS = 25.0
+"""The rate assumed for a folder of frames, or a video whose header gives none that is sane."""
+MAX_FPS = 1000.0
+_NUMBER = re.compile(r"(\d+)\D*$")
+
+
+def frame_number(path: Path) -> int | None:
+    """The number a frame file's name ends in (CDnet in000950.jpg -> 950), if any."""
+    match = _NUMBER.search(path.stem)
+    return int(match.group(1)) if match else None
+
+
+def frame_rate(capture: cv2.VideoCapture) -> float:
+    """The capture's frame rate, or DEFAULT_FPS when the header's is missing or absurd."""
+    rate = capture.get(cv2.CAP_PROP_FPS)
+    return float(rate) if math.isfinite(rate) and 0 < rate <= MAX_FPS else DEFAULT_FPS
 
 
 class InputError(ValueError):
@@ -90,15 +106,13 @@ def open_input(path: Path, fps: float | None = None) -> VideoInput:
         ok, first = capture.read()
         if not ok or first is None:
             raise InputError(f"video has no decodable frames: {path}")
-        rate = fps or capture.get(cv2.CAP_PROP_FPS)
+        rate = fps if fps and 0 < fps <= MAX_FPS else frame_rate(capture)
         claimed = int(capture.get(cv2.CAP_PROP_FRAME_COUNT))
     finally:
         capture.release()
-    if not rate or rate != rate or rate <= 0 or rate > 1000:
-        rate = DEFAULT_FOLDER_FPS
     return VideoInput(
         path,
-        float(rate),
+        rate,
         (first.shape[1], first.shape[0]),
         header_frames=claimed if claimed > 0 else None,
     )
@@ -115,5 +129,5 @@ def _open_folder(folder: Path, fps: float | None) -> VideoInput:
     if first is None:
         raise InputError(f"cannot decode image {images[0].name} in {folder}")
     return VideoInput(
-        folder, float(fps or DEFAULT_FOLDER_FPS), (first.shape[1], first.shape[0]), images=images
+        folder, float(fps or DEFAULT_FPS), (first.shape[1], first.shape[0]), images=images
     )

@@ -9,7 +9,6 @@ would deliver frames as fast as they decode, so the worker paces them at
 
 from __future__ import annotations
 
-import math
 import re
 from dataclasses import dataclass
 from pathlib import Path
@@ -18,12 +17,11 @@ from urllib.parse import unquote, urlparse
 
 import cv2
 
+from app.sources.files import frame_rate
 from app.sources.synthetic import MovingObject, Scene
 from app.vision.types import Image
 
 SourceKind = Literal["demo", "device", "rtsp", "http", "file"]
-
-DEFAULT_FPS = 25.0
 
 
 class SourceError(RuntimeError):
@@ -179,8 +177,7 @@ class FileSource:
             raise SourceError(f"file not found: {path}")
         self.path = path
         self._capture = self._open()
-        rate = self._capture.get(cv2.CAP_PROP_FPS)
-        self.fps = float(rate) if rate and math.isfinite(rate) and 0 < rate <= 240 else DEFAULT_FPS
+        self.fps = frame_rate(self._capture)
         self.description = f"file {path.name} at {self.fps:g} fps"
         self._frames_in_loop = 0
 
@@ -218,8 +215,7 @@ class CaptureSource:
 
     def __init__(self, capture: cv2.VideoCapture, description: str) -> None:
         self._capture = capture
-        rate = capture.get(cv2.CAP_PROP_FPS)
-        self.fps = float(rate) if rate and math.isfinite(rate) and 0 < rate <= 240 else DEFAULT_FPS
+        self.fps = frame_rate(capture)
         self.description = description
 
     @classmethod

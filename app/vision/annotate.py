@@ -9,7 +9,8 @@ import cv2
 import numpy as np
 
 from app.vision.detections import Detection
-from app.vision.types import Image, Mask
+from app.vision.preprocess import to_size
+from app.vision.types import GrayImage, Image, Mask
 
 RED = (0, 0, 255)
 WHITE = (255, 255, 255)
@@ -67,10 +68,15 @@ class Annotator:
 def overlay_mask(frame: Image, mask: Mask, color: tuple[int, int, int] = RED) -> Image:
     """The binary motion mask tinted over the picture (the "how sensitive" view)."""
     canvas = frame.copy() if frame.ndim == 3 else cv2.cvtColor(frame, cv2.COLOR_GRAY2BGR)
-    if mask.shape[:2] != canvas.shape[:2]:
-        mask = cv2.resize(mask, (canvas.shape[1], canvas.shape[0]), interpolation=cv2.INTER_NEAREST)
+    mask = to_size(mask, (canvas.shape[1], canvas.shape[0]))
     tint = np.zeros_like(canvas)
     tint[:] = color
     blended = cv2.addWeighted(canvas, 0.5, tint, 0.5, 0)
     np.copyto(canvas, blended, where=(mask > 0)[..., None])
     return canvas
+
+
+def difference_picture(difference: GrayImage, size: tuple[int, int]) -> GrayImage:
+    """The paper's difference image for a snapshot: stretched to full contrast, at ``size``."""
+    stretched = cv2.normalize(difference, np.empty_like(difference), 0, 255, cv2.NORM_MINMAX)
+    return to_size(stretched, size)

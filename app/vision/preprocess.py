@@ -106,6 +106,16 @@ class Downscale:
         return cv2.resize(image, size, interpolation=cv2.INTER_AREA)
 
 
+def to_size(image: Image, size: tuple[int, int]) -> Image:
+    """An image at ``size`` (width, height): a detection-resolution mask back at input size.
+
+    Nearest neighbour, so a binary mask stays binary.
+    """
+    if (image.shape[1], image.shape[0]) == size:
+        return image
+    return cv2.resize(image, size, interpolation=cv2.INTER_NEAREST)
+
+
 def as_uint8(image: np.ndarray) -> GrayImage:
     """Clip and convert any numeric image to 8 bits."""
     if image.dtype == np.uint8:

@@ -59,21 +59,16 @@ def main(argv: list[str] | None = None) -> int:
                 if ok:
                     write_atomic(live_path, data.tobytes())
 
-        capture = cv2.VideoCapture(str(args.input), cv2.CAP_FFMPEG)
-        claimed = int(capture.get(cv2.CAP_PROP_FRAME_COUNT)) if capture.isOpened() else 0
-        capture.release()
         last_sent = [0.0]
 
-        def progress(done: int, total: int | None) -> None:
-            expected = total or claimed
+        def progress(done: int, expected: int | None) -> None:
             now = time.monotonic()
             if now - last_sent[0] < 0.2:
                 return
             last_sent[0] = now
-            if expected and expected > 0:
-                fraction = min(0.99, done / expected)
-            else:  # Unknown length: creep towards 1 without reaching it.
-                fraction = min(0.99, done / (done + 300))
+            # The header's count may lie, and an unknown length creeps towards 1:
+            # either way, never past 0.99 before the analysis ends.
+            fraction = min(0.99, done / (expected or done + 300))
             _say({"progress": round(fraction, 4), "frames": done})
 
         runner.analyze(

@@ -12,23 +12,20 @@ import logging
 import threading
 import time
 from collections import deque
-from typing import Any, cast
-
-import cv2
-import numpy as np
+from typing import Any
 
 from app.core.config import Settings
 from app.events.alarm import AlarmLogic, MotionEvent
 from app.sources.live import FrameSource, SourceError, open_source, parse_source
 from app.storage.db import Database
 from app.storage.files import SnapshotStore
-from app.vision.annotate import Annotator
+from app.vision.annotate import difference_picture
 from app.vision.detections import Detection
 from app.vision.pipeline import FrameResult, Pipeline, PipelineConfig
 from app.vision.types import Image
 from app.vision.zones import as_polygons
 from app.workers.bus import EventBus
-from app.workers.hub import EncodeCounter, FrameHub, LiveFrame, encode_jpeg
+from app.workers.hub import ANNOTATOR, EncodeCounter, FrameHub, LiveFrame, encode_jpeg
 
 log = logging.getLogger("vigil.camera")
 
@@ -283,12 +280,9 @@ class CameraWorker:
         """A new event, or a new object within the open one: snapshots and an ``alarm``."""
         detections: list[Detection] = list(result.detections)
         boxes = [d.box.as_list() for d in detections]
-        picture = Annotator()(live.frame, detections, live.trails)
-        source = cast(Any, result.difference)
-        difference = cv2.normalize(source, np.zeros_like(source), 0, 255, cv2.NORM_MINMAX)
+        picture = ANNOTATOR(live.frame, detections, live.trails)
         height, width = live.frame.shape[:2]
-        if difference.shape[:2] != (height, width):
-            difference = cv2.resize(difference, (width, height), interpolation=cv2.INTER_NEAREST)
+        difference = difference_picture(result.difference, (width, height))
         event_id = self._event_rows.get(event.id)
         if event_id is None:
             track_ids = sorted(d.track_id for d in detections if d.track_id is not None)

@@ -24,7 +24,8 @@ from app.vision.detections import Detection
 from app.vision.histogram import GreyStats, grey_histogram, grey_stats, render_histogram
 from app.vision.types import GrayImage, Image, Mask
 
-_ANNOTATOR = Annotator()
+ANNOTATOR = Annotator()
+"""One annotator for every camera: it holds no state."""
 
 
 class EncodeCounter:
@@ -56,7 +57,7 @@ class LiveFrame:
         if self.mask is not None:
             picture = overlay_mask(picture, self.mask)
         if self.detections or self.trails:
-            picture = _ANNOTATOR(picture, self.detections, self.trails)
+            picture = ANNOTATOR(picture, self.detections, self.trails)
         return picture
 
     def jpeg(self) -> bytes:

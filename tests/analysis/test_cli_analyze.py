@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import csv
 import json
+import statistics
 import subprocess
 import sys
 from pathlib import Path
@@ -84,11 +85,7 @@ def test_speed_is_measured_within_five_percent(analysed):
     (track,) = report["tracks"]
     assert track["mean_speed_px_s"] == pytest.approx(60.0, rel=0.05)
     settled = [float(r["speed_px_s"]) for r in read_tracks(analysed)[8:-3]]
-    assert statistics_median(settled) == pytest.approx(60.0, rel=0.05)
-
-
-def statistics_median(values: list[float]) -> float:
-    return float(np.median(values))
+    assert statistics.median(settled) == pytest.approx(60.0, rel=0.05)
 
 
 def test_events_json_and_one_snapshot_per_event(analysed):

@@ -70,3 +70,13 @@ def test_serve_process_demo_and_prompt_exit(tmp_path: Path) -> None:
         if process.poll() is None:
             process.kill()
             process.wait(5)
+
+
+def test_serve_off_loopback_refuses_to_start_without_a_password(tmp_path: Path) -> None:
+    env = {k: v for k, v in os.environ.items() if k != "VIGIL_PASSWORD"}
+    result = subprocess.run(
+        [sys.executable, "-m", "app", "serve", "--host", "0.0.0.0", "--data", str(tmp_path)],
+        capture_output=True, text=True, cwd=ROOT, env=env, timeout=60,
+    )  # fmt: skip
+    assert result.returncode == 2
+    assert "VIGIL_PASSWORD" in result.stderr and len(result.stderr.strip().splitlines()) == 1

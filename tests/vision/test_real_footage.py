@@ -7,7 +7,6 @@ import subprocess
 import sys
 from pathlib import Path
 
-import cv2
 import pytest
 
 from app.analysis.scoring import Scorer
@@ -32,13 +31,10 @@ def f_measure(data: Path, sequence: str, method: str) -> float:
     source = open_input(data / input_rel)
     truth = load_truth(data / truth_rel, source.frame_numbers)
     pipeline = Pipeline(PipelineConfig(method=method), fps=source.fps)
-    scorer = Scorer(truth, source.size, 100.0)
+    scorer = Scorer(truth, 100.0)
     for frame in source.frames():
         result = pipeline.process(frame)
-        mask = result.mask
-        if result.scale != 1.0:
-            mask = cv2.resize(mask, source.size, interpolation=cv2.INTER_NEAREST)
-        scorer.add(result.index, [d.box for d in result.detections], mask)
+        scorer.add(result.index, [d.box for d in result.detections], result.mask)
     pixels = scorer.pixels_warm if sequence != "wallflower" else scorer.pixels
     return pixels.f_measure
 

@@ -124,6 +124,10 @@ def build_parser() -> argparse.ArgumentParser:
     evaluate.add_argument(
         "--truth", type=Path, required=True, help="a CDnet folder, a mask image or a box JSON file"
     )
+    commands.add_parser(
+        "hash-password",
+        help="print a VIGIL_PASSWORD_HASH (the password is read from stdin, or asked twice)",
+    )
     return parser
 
 
@@ -139,6 +143,8 @@ def main(argv: Sequence[str] | None = None) -> int:
     _quiet_opencv()
     if args.command == "serve":
         return _serve(args)
+    if args.command == "hash-password":
+        return _hash_password()
     if args.command == "analyze":
         return _analyze(args)
     return _evaluate(args)
@@ -261,22 +267,44 @@ def _serve(args: argparse.Namespace) -> int:
     if args.data is not None:
         overrides["data_dir"] = args.data
     settings = Settings(**overrides)
-    if not _is_loopback(settings.host) and not settings.password:  # Settings reads VIGIL_PASSWORD
+    # Settings reads VIGIL_PASSWORD and VIGIL_PASSWORD_HASH.
+    if not _is_loopback(settings.host) and not (settings.password or settings.password_hash):
         return _fail(
             "serve",
             f"refusing to listen on {settings.host} without a password: "
-            "set VIGIL_PASSWORD (or bind to 127.0.0.1)",
+            "set VIGIL_PASSWORD or VIGIL_PASSWORD_HASH (or bind to 127.0.0.1)",
         )
     import uvicorn
 
     from app.api.app import create_app
 
+    try:
+        application = create_app(settings)
+    except ValueError as exc:  # A bad VIGIL_PASSWORD_HASH: the message does not repeat it.
+        return _fail("serve", exc)
     uvicorn.run(
-        create_app(settings),
+        application,
         host=settings.host,
         port=settings.port,
         ws="websockets-sansio",
         timeout_graceful_shutdown=3,
         log_level="info",
     )
+    return 0
+
+
+def _hash_password() -> int:
+    import getpass
+
+    from app.api.security import PasswordHash
+
+    if sys.stdin.isatty():
+        password = getpass.getpass("Password: ")
+        if getpass.getpass("Again: ") != password:
+            return _fail("hash-password", "the two passwords differ")
+    else:
+        password = sys.stdin.readline().rstrip("\r\n")
+    if not password:
+        return _fail("hash-password", "empty password")
+    print(PasswordHash.create(password).encode())
     return 0

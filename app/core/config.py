@@ -17,8 +17,17 @@ class Settings(BaseSettings):
     port: int = 8000
     data_dir: Path = Path("data")
     """Holds vigil.db (SQLite), snapshots/ and analyses/."""
-    password: str | None = None
-    """When set, every page and API call needs HTTP basic auth with this password."""
+    password: str | None = Field(default=None, repr=False)
+    """When set, every page and API call needs a login (``/login``) or HTTP basic auth with
+    this password. The app keeps only its scrypt hash."""
+    password_hash: str | None = Field(default=None, repr=False)
+    """The password as ``vigil hash-password`` prints it (``scrypt:N:r:p:salt:key``, hex), so
+    the plain password need not be in the environment. Set this or ``password``, not both."""
+    session_hours: float = Field(default=12.0, gt=0)
+    """A login session ends after this many hours without a request."""
+    login_max_failures: int = Field(default=5, ge=1)
+    """Wrong passwords allowed per client address within ``login_window_s``; then 429."""
+    login_window_s: float = Field(default=60.0, gt=0)
     max_upload_mb: int = Field(default=1024, ge=1)
     demo_camera: bool = True
     """Create a ``demo`` camera at startup when none is configured."""
@@ -27,21 +36,44 @@ class Settings(BaseSettings):
     jpeg_quality: int = Field(default=80, ge=10, le=100)
     quiet_s: float = Field(default=2.0, gt=0)
     """Seconds without motion that end an event (``motion_end``)."""
+    alarm_gap_s: float = Field(default=1.0, ge=0)
+    """Shortest time between two alarms of one event; objects joining meanwhile are named
+    together by the next alarm."""
     reconnect_min_s: float = Field(default=0.5, gt=0)
-    reconnect_max_s: float = Field(default=15.0, gt=0)
+    reconnect_max_s: float = Field(default=3.0, gt=0)
+    """Longest wait between attempts to reopen a lost camera: it is back within about this
+    plus ``open_timeout_ms`` of returning."""
     open_timeout_ms: int = 3000
     read_timeout_ms: int = 2000
+    opencv_threads: int = Field(default=1, ge=0)
+    """OpenCV's own worker threads (0 = its default). Each camera has a thread already;
+    OpenCV's parallel loops on small frames cost more CPU than they save."""
+    worker_failures_limit: int = Field(default=3, ge=1)
+    """A camera worker failing this many times in a row shows ``error`` with the reason."""
+    bad_frames_limit: int = Field(default=50, ge=1)
+    """Undecodable frames in a row after which a camera counts as lost and is reconnected."""
     status_interval_s: float = Field(default=1.0, gt=0)
     """How often each camera reports its state, frame rate and motion on /ws."""
     default_min_area: float = 100.0
 
     retention_days: float = Field(default=30.0, ge=0)
     """Snapshots and finished events older than this are deleted (0 = keep forever)."""
+    retention_mb: float = Field(default=2048.0, ge=0)
+    """Cap on the snapshots' total size: the oldest go first, and an ended event with
+    its last snapshot (0 = no cap)."""
+    retention_interval_s: float = Field(default=60.0, gt=0)
+    """How often both limits are applied (and once at start)."""
 
     # Uploads.
     analysis_workers: int = Field(default=1, ge=1)
     """Uploads analysed at the same time (each in its own process)."""
     analysis_timeout_s: float = 3600.0
+    max_upload_pixels: int = Field(default=3840 * 2160, ge=1)
+    """Largest frame (width x height) an uploaded video may have: 4K UHD. Five megabytes
+    of MJPEG can hold 12000x12000 frames that take 9 GB to analyse, so larger is refused."""
+    analysis_memory_mb: int = Field(default=8192, ge=0)
+    """Address space each analysis process may use (0 = no limit): a decoder that tries
+    to allocate more fails that analysis instead of starving the machine."""
 
     @property
     def db_path(self) -> Path:

@@ -24,6 +24,11 @@ const state = {
 
 /* ---------- HTTP ---------- */
 
+/* A 401 means the session has ended (or never began): log in, then come back here. */
+function toLogin() {
+  location.assign(`/login?next=${encodeURIComponent(location.pathname + location.search)}`);
+}
+
 async function api(method, url, body) {
   const options = { method, headers: {} };
   if (body !== undefined) {
@@ -31,6 +36,10 @@ async function api(method, url, body) {
     options.body = JSON.stringify(body);
   }
   const response = await fetch(url, options);
+  if (response.status === 401) {
+    toLogin();
+    throw new Error("logged out");
+  }
   if (!response.ok) {
     let detail = response.statusText;
     try {
@@ -355,12 +364,16 @@ function onAlarm(message) {
   beep();
   const item = document.createElement("li");
   item.dataset.event = message.event_id;
-  item.innerHTML = `<a href="${message.snapshot}" target="_blank"><img src="${message.snapshot}" alt=""></a>
+  // No snapshot when the disk refused it (full, read-only): the event still counts.
+  const picture = message.snapshot
+    ? `<a href="${message.snapshot}" target="_blank"><img src="${message.snapshot}" alt=""></a>`
+    : '<span class="muted">snapshot not saved</span>';
+  item.innerHTML = `${picture}
     <div><b>${name}</b> — ${fmtDate(message.ts)}<br>
     ${count} object${count === 1 ? "" : "s"}: ${(message.objects || []).map((o) =>
       `#${o.track_id ?? "?"} ${o.box[2]}×${o.box[3]} px at (${o.box[0]}, ${o.box[1]}), ${Math.round(o.speed_px_s)} px/s`).join(", ")}
     <br><span class="ongoing">moving…</span>
-    <a href="${message.difference}" target="_blank">difference</a></div>`;
+    ${message.difference ? `<a href="${message.difference}" target="_blank">difference</a>` : ""}</div>`;
   $("#alarm-list").prepend(item);
   while ($("#alarm-list").children.length > 100) $("#alarm-list").lastElementChild.remove();
   const card = state.cards.get(message.camera_id);
@@ -421,7 +434,12 @@ function onCameraStatus(message) {
     loadCameras();
     return;
   }
-  const { type, camera_id: _, ...fields } = message;
+  if ("storage_error" in message) {
+    toast(message.storage_error
+      ? `<b>Snapshots of ${escapeHtml(camera.name)} not saved:</b> ${escapeHtml(message.storage_error)}`
+      : `Snapshots of ${escapeHtml(camera.name)} are saved again`, message.storage_error ? "error" : "info");
+  }
+  const { type, camera_id: _, storage_error: __, ...fields } = message;
   Object.assign(camera, fields);
   updateCard(state.cards.get(message.camera_id), camera);
   recordMotion(message.camera_id, Date.now() / 1000, message.motion || 0);
@@ -462,6 +480,10 @@ $("#upload").addEventListener("submit", (event) => {
   xhr.open("POST", "/api/analyses");
   xhr.upload.onprogress = (e) => { if (e.lengthComputable) bar.value = e.loaded / e.total; };
   xhr.onload = () => {
+    if (xhr.status === 401) {
+      toLogin();
+      return;
+    }
     let body = {};
     try { body = JSON.parse(xhr.responseText); } catch (_) { /* not JSON */ }
     if (xhr.status !== 202) {

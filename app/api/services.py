@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import logging
+import shutil
 import threading
 import time
 from typing import Any, cast
@@ -12,7 +13,7 @@ from starlette.requests import HTTPConnection
 
 from app.core.config import Settings
 from app.storage.db import Database
-from app.storage.files import SnapshotStore, prune
+from app.storage.files import SnapshotStore, prune, prune_to_size
 from app.vision.motion import DEFAULT_METHOD
 from app.workers.analysis import AnalysisManager
 from app.workers.bus import EventBus
@@ -20,6 +21,8 @@ from app.workers.camera import CameraWorker
 from app.workers.manager import CameraManager
 
 log = logging.getLogger("vigil")
+
+MB = 1024 * 1024
 
 
 class Services:
@@ -59,6 +62,9 @@ class Services:
         settings = self.settings
         settings.data_dir.mkdir(parents=True, exist_ok=True)
         self.db = Database(settings.db_path)
+        closed = self.db.close_open_events()  # No worker runs yet: these are the last run's.
+        if closed:
+            log.info("closed %d event(s) left open when the server last stopped", closed)
         self._snapshots = SnapshotStore(settings.snapshots_dir)
         self._cameras = CameraManager(settings, self.db, self._snapshots, self.bus)
         self._analyses = AnalysisManager(
@@ -73,23 +79,50 @@ class Services:
             log.info("no camera configured: added the demo camera")
         self._cameras.start_all()
         self._analyses.start()
-        if settings.retention_days > 0:
+        if settings.retention_days > 0 or settings.retention_mb > 0:
             self._pruner = threading.Thread(
                 target=self._prune_forever, name="retention", daemon=True
             )
             self._pruner.start()
 
     def _prune_forever(self) -> None:
-        """Drop what is older than ``retention_days``, now and then every hour."""
+        """Apply ``retention_days`` and ``retention_mb`` now, then every ``retention_interval_s``.
+
+        Cheap enough to run often: both start from an index or the running total.
+        """
+        settings = self.settings
         while not self._stopping.is_set():
             try:
-                before = time.time() - self.settings.retention_days * 86400
-                removed = prune(self.database, self.snapshots, before)
-                if removed:
-                    log.info("retention: removed %d old snapshots", removed)
+                if settings.retention_days > 0:
+                    before = time.time() - settings.retention_days * 86400
+                    removed = prune(self.database, self.snapshots, before)
+                    if removed:
+                        log.info("retention: removed %d old snapshots", removed)
+                if settings.retention_mb > 0:
+                    cap = int(settings.retention_mb * MB)
+                    removed = prune_to_size(self.database, self.snapshots, cap)
+                    if removed:
+                        log.info(
+                            "retention: removed %d snapshots to stay under %g MB",
+                            removed,
+                            settings.retention_mb,
+                        )
             except Exception:
                 log.exception("retention pass failed")
-            self._stopping.wait(3600)
+            self._stopping.wait(settings.retention_interval_s)
+
+    def storage(self) -> dict[str, Any]:
+        """Free space, the snapshots' total and cap, and why snapshots fail (None: they don't)."""
+        try:
+            free_mb: float | None = round(shutil.disk_usage(self.settings.data_dir).free / MB, 1)
+        except OSError:
+            free_mb = None
+        return {
+            "free_mb": free_mb,
+            "snapshots_mb": round(self.database.snapshot_bytes() / MB, 3),
+            "cap_mb": self.settings.retention_mb or None,
+            "error": self.snapshots.error,
+        }
 
     def end_streams(self) -> None:
         """The server is stopping: every stream ends now (workers stop later, in stop())."""

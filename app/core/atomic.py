@@ -7,14 +7,34 @@ import tempfile
 from pathlib import Path
 
 
-def write_atomic(path: Path, data: bytes) -> None:
-    """Write to a temporary name in the same folder, then rename over ``path``."""
+def write_atomic(path: Path, data: bytes, durable: bool = False) -> None:
+    """Write to a temporary name in the same folder, then rename over ``path``.
+
+    A killed process leaves the old file or the new one either way. ``durable``
+    also survives a power cut: the data reaches the disk before the rename, and
+    the rename before the call returns, so a database row written next never
+    names a file the disk does not hold. Not for files rewritten many times a
+    second (each fsync waits for the disk).
+    """
     path.parent.mkdir(parents=True, exist_ok=True)
     fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=path.parent)
     try:
         with os.fdopen(fd, "wb") as handle:
             handle.write(data)
+            if durable:
+                handle.flush()
+                os.fsync(handle.fileno())
         Path(tmp).replace(path)
     except BaseException:
         Path(tmp).unlink(missing_ok=True)
         raise
+    if durable:
+        _fsync_folder(path.parent)
+
+
+def _fsync_folder(folder: Path) -> None:
+    fd = os.open(folder, os.O_RDONLY)
+    try:
+        os.fsync(fd)
+    finally:
+        os.close(fd)

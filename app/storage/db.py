@@ -3,6 +3,10 @@
 One connection shared by every thread behind a lock: writes are small and
 rare (an event, a snapshot, a setting), so a lock is simpler than a pool and
 WAL keeps readers of other processes (a backup, ``sqlite3`` by hand) unblocked.
+
+``synchronous=FULL``: a committed event survives a killed process and a power
+cut alike. It costs one fsync per commit, and commits come per alarm, not per
+frame.
 """
 
 from __future__ import annotations
@@ -49,6 +53,21 @@ CREATE TABLE IF NOT EXISTS snapshots (
     size INTEGER NOT NULL DEFAULT 0
 );
 CREATE INDEX IF NOT EXISTS snapshots_camera_time ON snapshots (camera_id, ts);
+CREATE INDEX IF NOT EXISTS snapshots_time ON snapshots (ts);
+CREATE INDEX IF NOT EXISTS snapshots_event ON snapshots (event_id);
+CREATE INDEX IF NOT EXISTS events_time ON events (started_at);
+-- The snapshots' total size, kept by triggers, so a size cap is checked without a scan.
+CREATE TABLE IF NOT EXISTS snapshot_usage (
+    id INTEGER PRIMARY KEY CHECK (id = 1),
+    bytes INTEGER NOT NULL
+);
+INSERT OR IGNORE INTO snapshot_usage (id, bytes) SELECT 1, COALESCE(SUM(size), 0) FROM snapshots;
+CREATE TRIGGER IF NOT EXISTS snapshot_usage_insert AFTER INSERT ON snapshots BEGIN
+    UPDATE snapshot_usage SET bytes = bytes + NEW.size WHERE id = 1;
+END;
+CREATE TRIGGER IF NOT EXISTS snapshot_usage_delete AFTER DELETE ON snapshots BEGIN
+    UPDATE snapshot_usage SET bytes = bytes - OLD.size WHERE id = 1;
+END;
 CREATE TABLE IF NOT EXISTS analyses (
     id TEXT PRIMARY KEY,
     filename TEXT NOT NULL,
@@ -83,9 +102,10 @@ class Database:
         self._conn = sqlite3.connect(str(path), check_same_thread=False, isolation_level=None)
         self._conn.row_factory = sqlite3.Row
         self._conn.execute("PRAGMA journal_mode=WAL")
-        self._conn.execute("PRAGMA synchronous=NORMAL")
+        self._conn.execute("PRAGMA synchronous=FULL")
         self._conn.execute("PRAGMA busy_timeout=5000")
-        self._conn.executescript(SCHEMA)
+        # One transaction: the usage total is seeded and its triggers made together.
+        self._conn.executescript(f"BEGIN IMMEDIATE;\n{SCHEMA}COMMIT;")
         self._add_missing_columns()
 
     def _add_missing_columns(self) -> None:
@@ -189,6 +209,19 @@ class Database:
                 (ended_at, max_area, json.dumps(sorted(track_ids)), event_id),
             )
 
+    def close_open_events(self) -> int:
+        """End the events a previous run left open (it was killed or lost power).
+
+        Each ends at its last snapshot, or where it started: the last moment known
+        to have had motion, not the moment the server came back.
+        """
+        with self._tx() as conn:
+            return conn.execute(
+                "UPDATE events SET ended_at = COALESCE("
+                " (SELECT MAX(ts) FROM snapshots WHERE event_id = events.id), started_at)"
+                " WHERE ended_at IS NULL"
+            ).rowcount
+
     def events(
         self,
         camera_id: int | None = None,
@@ -252,6 +285,24 @@ class Database:
         with self._tx() as conn:
             conn.executemany("DELETE FROM snapshots WHERE id = ?", [(r["id"],) for r in rows])
         return rows
+
+    def snapshot_bytes(self) -> int:
+        """The total size of every snapshot, from the running total (no scan)."""
+        row = self._query_one("SELECT bytes FROM snapshot_usage WHERE id = 1")
+        return int(row[0]) if row else 0
+
+    def oldest_snapshots(self, limit: int) -> list[dict[str, Any]]:
+        rows = self._query("SELECT * FROM snapshots ORDER BY ts, id LIMIT ?", (limit,))
+        return [dict(r) for r in rows]
+
+    def delete_events_without_snapshots(self, event_ids: Sequence[int]) -> int:
+        """Delete those of ``event_ids`` that have ended and have no snapshot left."""
+        with self._tx() as conn:
+            return conn.executemany(
+                "DELETE FROM events WHERE id = ? AND ended_at IS NOT NULL"
+                " AND NOT EXISTS (SELECT 1 FROM snapshots WHERE event_id = events.id)",
+                [(event_id,) for event_id in event_ids],
+            ).rowcount
 
     def delete_events_before(self, before: float) -> int:
         with self._tx() as conn:

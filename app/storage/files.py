@@ -1,7 +1,10 @@
-"""Snapshots on disk (written whole or not at all) and the streamed zip of a gallery."""
+"""Snapshots on disk (written whole or not at all), retention, and the streamed zip of a gallery."""
 
 from __future__ import annotations
 
+import contextlib
+import errno
+import threading
 import time
 import zipfile
 from collections.abc import Iterable, Iterator
@@ -14,20 +17,64 @@ if TYPE_CHECKING:
     from app.storage.db import Database
 
 
+WRITE_ERRORS = {
+    errno.ENOSPC: "disk full",
+    errno.EDQUOT: "disk quota exceeded",
+    errno.EROFS: "read-only file system",
+    errno.EACCES: "permission denied",
+    errno.EPERM: "permission denied",
+}
+
+
+def describe_write_error(exc: OSError) -> str:
+    """A short reason for people (no paths: /api/health answers without a password)."""
+    known = WRITE_ERRORS.get(exc.errno or 0)
+    return known or f"cannot write ({exc.strerror or type(exc).__name__})"
+
+
 class SnapshotStore:
-    """JPEG files under ``root/<camera id>/<day>/``; the database keeps paths relative to root."""
+    """JPEG files under ``root/<camera id>/<day>/``; the database keeps paths relative to root.
+
+    It remembers, per camera, why the last write failed until one succeeds, so a
+    burst of failures is reported once and its end is noticed.
+    """
 
     def __init__(self, root: Path) -> None:
         self.root = root
         root.mkdir(parents=True, exist_ok=True)
+        self._failures: dict[int, str] = {}
+        self._lock = threading.Lock()
 
     def save(self, camera_id: int, ts: float, kind: str, data: bytes, event_id: int | None) -> str:
+        """Write one JPEG, durably: the row the caller adds next must not outlive its file.
+
+        Raises OSError (disk full, read-only...), after noting the reason.
+        """
         day = time.strftime("%Y-%m-%d", time.gmtime(ts))
         stamp = time.strftime("%H%M%S", time.gmtime(ts)) + f"{int(ts * 1000) % 1000:03d}"
         name = f"{stamp}-e{event_id or 0}-{kind}.jpg"
         relative = f"{camera_id}/{day}/{name}"
-        write_atomic(self.root / relative, data)
+        try:
+            write_atomic(self.root / relative, data, durable=True)
+        except OSError as exc:
+            with self._lock:
+                self._failures.pop(camera_id, None)  # The newest failure last, for ``error``.
+                self._failures[camera_id] = describe_write_error(exc)
+            raise
+        with self._lock:
+            self._failures.pop(camera_id, None)
         return relative
+
+    def failure(self, camera_id: int) -> str | None:
+        """Why the camera's last snapshot could not be written; None once one succeeds."""
+        with self._lock:
+            return self._failures.get(camera_id)
+
+    @property
+    def error(self) -> str | None:
+        """The newest failure of any camera still failing, None when all is well."""
+        with self._lock:
+            return next(reversed(self._failures.values()), None)
 
     def path(self, relative: str) -> Path:
         resolved = (self.root / relative).resolve()
@@ -36,7 +83,8 @@ class SnapshotStore:
         return resolved
 
     def delete(self, relative: str) -> None:
-        self.path(relative).unlink(missing_ok=True)
+        with contextlib.suppress(FileNotFoundError, NotADirectoryError):  # Already gone.
+            self.path(relative).unlink()
 
 
 class _Sink:
@@ -98,4 +146,31 @@ def prune(db: Database, store: SnapshotStore, before: float, batch: int = 1000) 
             store.delete(row["path"])
             removed += 1
     db.delete_events_before(before)
+    return removed
+
+
+def prune_to_size(db: Database, store: SnapshotStore, max_bytes: int, batch: int = 500) -> int:
+    """Delete the oldest snapshots until they total at most ``max_bytes``; returns how many.
+
+    The running total in the database says when to stop, so a store under its cap
+    costs one query. An ended event goes with its last snapshot. Rows go before
+    files: a kill in between leaves a stray file, never a row without its picture.
+    """
+    removed = 0
+    while (excess := db.snapshot_bytes() - max_bytes) > 0:
+        chosen: list[int] = []
+        for row in db.oldest_snapshots(batch):
+            chosen.append(row["id"])
+            excess -= row["size"]
+            if excess <= 0:
+                break
+        if not chosen:
+            break
+        deleted = db.delete_snapshots(chosen)
+        for row in deleted:
+            store.delete(row["path"])
+        removed += len(deleted)
+        db.delete_events_without_snapshots(
+            sorted({r["event_id"] for r in deleted if r["event_id"] is not None})
+        )
     return removed

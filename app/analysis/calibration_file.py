@@ -17,6 +17,12 @@ from pathlib import Path
 
 from app.vision.calibration import GroundPlane
 
+MAX_COORDINATE = 1e7
+"""Pixels and metres past this are typos, and overflow the homography into infinities."""
+MAX_HEIGHT_M = 10_000.0
+MIN_FOV_DEG = 0.1
+"""A narrower field of view puts the focal length, and ground positions, out of range."""
+
 
 class CalibrationError(ValueError):
     """The calibration file cannot be used; the message says why."""
@@ -38,12 +44,12 @@ def load_calibration(path: Path, image_size: tuple[int, int]) -> GroundPlane:
                 [_point(p) for p in _list(data["ground_points"])],
                 _point(data.get("camera_xy", (0.0, 0.0))),
             )
-        return GroundPlane.from_camera(
-            float(data["camera_height_m"]),
-            float(data["tilt_deg"]),
-            float(data["vertical_fov_deg"]),
-            image_size,
-        )
+        height_m, fov = float(data["camera_height_m"]), float(data["vertical_fov_deg"])
+        if not height_m <= MAX_HEIGHT_M:
+            raise ValueError(f"camera height must be at most {MAX_HEIGHT_M:g} m")
+        if not fov >= MIN_FOV_DEG:
+            raise ValueError(f"field of view must be at least {MIN_FOV_DEG:g} degrees")
+        return GroundPlane.from_camera(height_m, float(data["tilt_deg"]), fov, image_size)
     except KeyError as exc:
         raise CalibrationError(
             f"{path}: missing {exc.args[0]!r} (see docs/calibration.md)"
@@ -62,6 +68,6 @@ def _point(value: object) -> tuple[float, float]:
     if not isinstance(value, list | tuple) or len(value) != 2:
         raise ValueError(f"a point is [x, y], not {value!r}")
     point = (float(value[0]), float(value[1]))
-    if not all(math.isfinite(v) for v in point):
-        raise ValueError(f"a point needs finite numbers, not {value!r}")
+    if not all(math.isfinite(v) and abs(v) <= MAX_COORDINATE for v in point):
+        raise ValueError(f"a point needs numbers within ±{MAX_COORDINATE:g}, not {value!r}")
     return point

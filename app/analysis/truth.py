@@ -145,10 +145,10 @@ def _inside(number: int | None, temporal: tuple[int, int] | None) -> bool:
 def _temporal_roi(path: Path) -> tuple[int, int] | None:
     if not path.is_file():
         return None
-    parts = path.read_text().split()
     try:
+        parts = path.read_text().split()
         return int(parts[0]), int(parts[1])
-    except (IndexError, ValueError):
+    except (OSError, IndexError, ValueError):  # ValueError covers text that is not UTF-8.
         raise TruthError(f"{path} should hold two frame numbers") from None
 
 

@@ -39,6 +39,16 @@ class InputError(ValueError):
     """The input cannot be analysed; the message is one readable line."""
 
 
+def check_frame_size(width: int, height: int, max_pixels: int | None) -> None:
+    """Refuse frames too large to analyse (a hostile header can claim any size)."""
+    if width <= 0 or height <= 0:
+        raise InputError(f"the video claims frames of {width}x{height} pixels")
+    if max_pixels is not None and width * height > max_pixels:
+        raise InputError(
+            f"frames of {width}x{height} are too large: at most {max_pixels:,} pixels are allowed"
+        )
+
+
 @dataclass
 class VideoInput:
     """An opened input: its frames (decoded lazily), rate, size and frame names."""
@@ -76,21 +86,34 @@ class VideoInput:
             return
         capture = cv2.VideoCapture(str(self.path), cv2.CAP_FFMPEG)
         try:
+            index = 0
             while True:
                 ok, frame = capture.read()
                 if not ok or frame is None:
                     return
+                # A stream can switch to other (larger) frames mid-way; every later stage
+                # and the annotated video assume the first frame's size.
+                if (frame.shape[1], frame.shape[0]) != self.size:
+                    raise InputError(
+                        f"frame {index} is {frame.shape[1]}x{frame.shape[0]}, "
+                        f"the first frame was {self.size[0]}x{self.size[1]}"
+                    )
+                index += 1
                 yield frame
         finally:
             capture.release()
 
 
-def open_input(path: Path, fps: float | None = None) -> VideoInput:
-    """Open a video file or a folder of frames, or raise InputError with the reason."""
+def open_input(path: Path, fps: float | None = None, max_pixels: int | None = None) -> VideoInput:
+    """Open a video file or a folder of frames, or raise InputError with the reason.
+
+    ``max_pixels`` caps width x height, checked against the header before a frame
+    is decoded and again against the first decoded frame.
+    """
     if not path.exists():
         raise InputError(f"input not found: {path}")
     if path.is_dir():
-        return _open_folder(path, fps)
+        return _open_folder(path, fps, max_pixels)
     if not path.is_file():
         raise InputError(f"input is not a file or folder: {path}")
     try:
@@ -103,22 +126,30 @@ def open_input(path: Path, fps: float | None = None) -> VideoInput:
     try:
         if not capture.isOpened():
             raise InputError(f"not a video FFmpeg can decode: {path}")
+        header_size = (
+            capture.get(cv2.CAP_PROP_FRAME_WIDTH),
+            capture.get(cv2.CAP_PROP_FRAME_HEIGHT),
+        )
+        if all(math.isfinite(v) and v > 0 for v in header_size):
+            check_frame_size(int(header_size[0]), int(header_size[1]), max_pixels)
         ok, first = capture.read()
         if not ok or first is None:
             raise InputError(f"video has no decodable frames: {path}")
+        check_frame_size(first.shape[1], first.shape[0], max_pixels)
         rate = fps if fps and 0 < fps <= MAX_FPS else frame_rate(capture)
-        claimed = int(capture.get(cv2.CAP_PROP_FRAME_COUNT))
+        claimed = capture.get(cv2.CAP_PROP_FRAME_COUNT)
     finally:
         capture.release()
     return VideoInput(
         path,
         rate,
         (first.shape[1], first.shape[0]),
-        header_frames=claimed if claimed > 0 else None,
+        # The header's count is informational and may be anything, NaN included.
+        header_frames=int(claimed) if math.isfinite(claimed) and claimed > 0 else None,
     )
 
 
-def _open_folder(folder: Path, fps: float | None) -> VideoInput:
+def _open_folder(folder: Path, fps: float | None, max_pixels: int | None) -> VideoInput:
     try:
         images = sorted(p for p in folder.iterdir() if p.suffix.lower() in IMAGE_SUFFIXES)
     except PermissionError:
@@ -128,6 +159,7 @@ def _open_folder(folder: Path, fps: float | None) -> VideoInput:
     first = cv2.imread(str(images[0]), cv2.IMREAD_COLOR)
     if first is None:
         raise InputError(f"cannot decode image {images[0].name} in {folder}")
+    check_frame_size(first.shape[1], first.shape[0], max_pixels)
     return VideoInput(
         folder, float(fps or DEFAULT_FPS), (first.shape[1], first.shape[0]), images=images
     )

@@ -7,10 +7,12 @@ import json
 import logging
 import os
 import queue
-import subprocess
+import signal
+import subprocess  # nosec B404  # only to run this package's own child: argument list, no shell
 import sys
 import threading
 import time
+from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
@@ -21,6 +23,16 @@ from app.workers.bus import EventBus
 log = logging.getLogger("vigil.analysis")
 
 PACKAGE_ROOT = Path(app.__file__).resolve().parent.parent
+CRASH_SIGNALS = {signal.SIGSEGV, signal.SIGBUS, signal.SIGABRT, signal.SIGILL, signal.SIGFPE}
+"""How native code dies on a malformed file (bad read, heap corruption), not how it is stopped."""
+
+
+@dataclass(frozen=True)
+class AnalysisLimits:
+    """What one upload's process may take: frame size and address space (None = no limit)."""
+
+    max_pixels: int | None = None
+    memory_mb: int | None = None
 
 
 class AnalysisManager:
@@ -36,6 +48,7 @@ class AnalysisManager:
         self.progress: dict[str, float] = {}
         self._queue: queue.Queue[str | None] = queue.Queue()
         self._children: dict[str, subprocess.Popen[str]] = {}
+        self._limits: dict[str, AnalysisLimits] = {}
         self._lock = threading.Lock()
         self._stopping = threading.Event()
         self._threads = [
@@ -67,7 +80,9 @@ class AnalysisManager:
     def folder(self, analysis_id: str) -> Path:
         return self.root / analysis_id
 
-    def submit(self, analysis_id: str) -> None:
+    def submit(self, analysis_id: str, limits: AnalysisLimits | None = None) -> None:
+        if limits is not None:
+            self._limits[analysis_id] = limits
         self._queue.put(analysis_id)
 
     def _serve(self) -> None:
@@ -82,6 +97,7 @@ class AnalysisManager:
                 self._finish(analysis_id, "failed", f"analysis failed: {exc}")
 
     def _run(self, analysis_id: str) -> None:
+        limits = self._limits.pop(analysis_id, AnalysisLimits())
         row = self.db.analysis(analysis_id)
         if row is None:
             return
@@ -98,8 +114,16 @@ class AnalysisManager:
         env["PYTHONPATH"] = os.pathsep.join(
             p for p in (str(PACKAGE_ROOT), env.get("PYTHONPATH", "")) if p
         )
-        command = self.command(inputs[0], folder / "out", row["options"])
-        child = subprocess.Popen(
+        # The child's own options: it names the upload in its errors by the user's file name,
+        # not by the path on this server.
+        options = {
+            **row["options"],
+            "name": row["filename"],
+            "max_pixels": limits.max_pixels,
+            "memory_mb": limits.memory_mb,
+        }
+        command = self.command(inputs[0], folder / "out", options)
+        child = subprocess.Popen(  # nosec B603  # sys.executable and our module; no shell
             command,
             stdout=subprocess.PIPE,
             stderr=subprocess.PIPE,
@@ -114,7 +138,13 @@ class AnalysisManager:
         drain.start()
         error: str | None = None
         done = False
-        timer = threading.Timer(self.timeout_s, child.kill)
+        timed_out = threading.Event()
+
+        def time_out() -> None:
+            timed_out.set()
+            child.kill()
+
+        timer = threading.Timer(self.timeout_s, time_out)
         timer.daemon = True
         timer.start()
         try:
@@ -123,6 +153,8 @@ class AnalysisManager:
                 try:
                     message = json.loads(line)
                 except ValueError:
+                    continue
+                if not isinstance(message, dict):  # A native library's stray output.
                     continue
                 if "progress" in message:
                     fraction = float(message["progress"])
@@ -136,7 +168,7 @@ class AnalysisManager:
                         }
                     )
                 elif "error" in message:
-                    error = str(message["error"])
+                    error = _one_line(str(message["error"])) or "the analysis failed"
                 elif message.get("done"):
                     done = True
             code = child.wait()
@@ -153,11 +185,10 @@ class AnalysisManager:
         if error is None:
             if self._stopping.is_set():
                 error = "the server stopped before the analysis finished"
+            elif timed_out.is_set():
+                error = f"the analysis took longer than {self.timeout_s:g} s and was stopped"
             else:
-                last = next((s for s in reversed(stderr_tail) if s.strip()), "")
-                error = f"the analysis process crashed (exit status {code})"
-                if last:
-                    error += f": {last.strip()[:200]}"
+                error = exit_reason(code, next((s for s in reversed(stderr_tail) if s.strip()), ""))
         self._finish(analysis_id, "failed", error)
 
     def command(self, input_path: Path, out_dir: Path, options: dict[str, Any]) -> list[str]:
@@ -178,6 +209,28 @@ class AnalysisManager:
         self.bus.publish(
             {"type": "status", "analysis_id": analysis_id, "status": status, "error": error}
         )
+
+
+def exit_reason(code: int, last_stderr: str = "") -> str:
+    """One line saying how a child that sent no error of its own ended."""
+    detail = f": {_one_line(last_stderr, 200)}" if last_stderr.strip() else ""
+    if code >= 0:
+        return f"the analysis process failed (exit status {code}){detail}"
+    try:
+        sig: signal.Signals | None = signal.Signals(-code)
+    except ValueError:
+        sig = None
+    named = f"signal {-code}, {sig.name}" if sig else f"signal {-code}"
+    if sig in CRASH_SIGNALS:
+        return f"the decoder crashed ({named}) on this file{detail}"
+    if sig == signal.SIGKILL:
+        return f"the analysis process was killed ({named}), perhaps for using too much memory"
+    return f"the analysis process was stopped ({named})"
+
+
+def _one_line(text: str, limit: int = 300) -> str:
+    first = text.strip().splitlines()[0] if text.strip() else ""
+    return first[:limit]
 
 
 def _tail(stream: Any, lines: list[str], keep: int = 20) -> None:

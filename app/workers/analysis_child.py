@@ -5,12 +5,18 @@ talks to the server on stdout, one JSON object a line: ``{"progress": 0.42}``
 as frames are done, then ``{"done": true}`` or ``{"error": "one line"}``. While
 it runs it keeps ``live.jpg`` in the output folder, the latest annotated frame,
 for the analysis' MJPEG stream.
+
+``--options`` also carries the upload's own file name (``name``, used in errors
+instead of the path on the server), ``max_pixels`` (largest frame allowed,
+checked from the header before a frame is decoded) and ``memory_mb`` (this
+process' address space, so a decoder that allocates without bound fails here).
 """
 
 from __future__ import annotations
 
 import argparse
 import json
+import resource
 import sys
 import time
 from pathlib import Path
@@ -18,6 +24,23 @@ from typing import Any
 
 LIVE_FRAME = "live.jpg"
 LIVE_INTERVAL_S = 0.1
+MIN_FRAMES = 2
+"""Motion needs two frames: a still picture (a PNG named .avi) is not a video to analyse."""
+
+
+def _limit_memory(memory_mb: int) -> None:
+    _, hard = resource.getrlimit(resource.RLIMIT_AS)
+    soft = memory_mb * 1024 * 1024
+    if hard != resource.RLIM_INFINITY:
+        soft = min(soft, hard)
+    resource.setrlimit(resource.RLIMIT_AS, (soft, hard))
+
+
+def _out_of_memory(exc: BaseException) -> bool:
+    if isinstance(exc, MemoryError):
+        return True
+    text = str(exc)
+    return "Insufficient memory" in text or "Failed to allocate" in text
 
 
 def _say(message: dict[str, Any]) -> None:
@@ -29,14 +52,31 @@ def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(prog="analysis_child")
     parser.add_argument("input", type=Path)
     parser.add_argument("out", type=Path)
-    parser.add_argument("--options", default="{}", help="JSON: method, sensitivity, min_area")
+    parser.add_argument(
+        "--options",
+        default="{}",
+        help="JSON: method, sensitivity, min_area, name, max_pixels, memory_mb",
+    )
     args = parser.parse_args(argv)
-    options: dict[str, Any] = json.loads(args.options)
+    input_path: Path = args.input
+    options: dict[str, Any] = {}
+    name = input_path.name
+
+    def public(text: str) -> str:
+        """One line, naming the upload as its owner knows it, not by its path here."""
+        first = text.strip().splitlines()[0] if text.strip() else ""
+        return first.replace(str(input_path), name).replace(str(input_path.parent) + "/", "")
+
     try:
+        options = json.loads(args.options)
+        name = str(options.get("name") or name)
+        if options.get("memory_mb"):
+            _limit_memory(int(options["memory_mb"]))
         import cv2
 
         from app.analysis import runner
         from app.core.atomic import write_atomic
+        from app.sources.files import open_input
         from app.vision.pipeline import PipelineConfig
 
         config = PipelineConfig(
@@ -71,14 +111,28 @@ def main(argv: list[str] | None = None) -> int:
             fraction = min(0.99, done / (expected or done + 300))
             _say({"progress": round(fraction, 4), "frames": done})
 
-        runner.analyze(
-            args.input, out_dir, runner.AnalysisOptions(pipeline=config), progress, keep_live_frame
+        # Refuse what is too large from its header before the analysis decodes a frame.
+        open_input(input_path, max_pixels=options.get("max_pixels"))
+        report = runner.analyze(
+            input_path, out_dir, runner.AnalysisOptions(pipeline=config), progress, keep_live_frame
         )
-    except ValueError as exc:  # InputError, TruthError, bad options: one readable line.
-        _say({"error": str(exc).splitlines()[0] if str(exc) else type(exc).__name__})
-        return 2
+        if report["frames"] < MIN_FRAMES:
+            _say(
+                {
+                    "error": f"{name} holds a single picture, not a video: "
+                    "motion needs at least two frames"
+                }
+            )
+            return 2
     except Exception as exc:
-        _say({"error": f"analysis failed: {type(exc).__name__}: {exc}".splitlines()[0]})
+        if _out_of_memory(exc):
+            limit = options.get("memory_mb")
+            _say({"error": f"{name} needs more memory than an analysis may use ({limit} MB)"})
+            return 1
+        if isinstance(exc, ValueError):  # InputError, TruthError, bad options: one line.
+            _say({"error": public(str(exc)) or type(exc).__name__})
+            return 2
+        _say({"error": public(f"analysis failed: {type(exc).__name__}: {exc}")})
         return 1
     _say({"done": True})
     return 0

@@ -70,7 +70,7 @@ def test_corrupt_upload_fails_alone(serve: Callable[..., Running], tmp_path: Pat
     assert failed["error"] and "\n" not in failed["error"] and len(failed["error"]) < 300
     assert "decode" in failed["error"] or "frames" in failed["error"]
     assert _finished(server, good)["status"] == "done"
-    assert httpx.get(f"{server.base}/api/health").json() == {"status": "ok"}
+    assert httpx.get(f"{server.base}/api/health").json()["status"] == "ok"
     missing = httpx.get(f"{server.base}/api/analyses/{bad}/tracks.csv")
     assert missing.status_code == 404 and "failed" in missing.json()["detail"]
 

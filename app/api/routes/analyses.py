@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import asyncio
 import json
+import math
 import re
 import shutil
 import uuid
@@ -14,9 +15,11 @@ from typing import Any, BinaryIO
 from fastapi import APIRouter, Form, HTTPException, Request, UploadFile
 from fastapi.responses import FileResponse, JSONResponse, StreamingResponse
 
+from app.api.routes.inputs import is_control
 from app.api.routes.streams import MJPEG_TYPE, NO_CACHE, mjpeg_part
 from app.api.services import Services, services
 from app.vision.motion import METHODS
+from app.workers.analysis import AnalysisLimits
 from app.workers.analysis_child import LIVE_FRAME
 
 router = APIRouter(prefix="/api/analyses", tags=["analyses"])
@@ -26,6 +29,16 @@ FINISHED = ("done", "failed")
 
 class UploadTooLargeError(Exception):
     pass
+
+
+def display_name(filename: str | None) -> str:
+    """The upload's own name, for people: no folders (either slash), no control characters.
+
+    It is never part of a path here: the file is kept as ``input<suffix>``.
+    """
+    name = re.split(r"[/\\]", filename or "")[-1]
+    name = "".join(c for c in name if not is_control(c)).strip()[:200]
+    return name if name not in ("", ".", "..") else "upload"
 
 
 def _copy_limited(source: BinaryIO, target: Path, limit: int) -> int:
@@ -54,12 +67,12 @@ async def upload(
         raise HTTPException(422, f"unknown method {method!r}; choose from {', '.join(METHODS)}")
     if sensitivity is not None and not 1 <= sensitivity <= 255:
         raise HTTPException(422, "sensitivity must be between 1 and 255 grey levels")
-    if min_area is not None and min_area < 0:
-        raise HTTPException(422, "min_area must not be negative")
+    if min_area is not None and not (math.isfinite(min_area) and min_area >= 0):
+        raise HTTPException(422, "min_area must be a number of pixels, 0 or more")
     analysis_id = uuid.uuid4().hex[:12]
     folder = svc.analyses.folder(analysis_id)
     folder.mkdir(parents=True, exist_ok=True)
-    filename = Path(file.filename or "upload").name[:200] or "upload"
+    filename = display_name(file.filename)
     suffix = Path(filename).suffix.lower()
     if not re.fullmatch(r"\.[a-z0-9]{1,5}", suffix):
         suffix = ".bin"
@@ -73,7 +86,8 @@ async def upload(
         raise HTTPException(422, "the uploaded file is empty")
     options = {"method": method or None, "sensitivity": sensitivity, "min_area": min_area}
     svc.database.add_analysis(analysis_id, filename, options)
-    svc.analyses.submit(analysis_id)
+    limits = AnalysisLimits(svc.settings.max_upload_pixels, svc.settings.analysis_memory_mb or None)
+    svc.analyses.submit(analysis_id, limits)
     svc.bus.publish({"type": "status", "analysis_id": analysis_id, "status": "queued"})
     return {"id": analysis_id, "url": f"/api/analyses/{analysis_id}"}
 

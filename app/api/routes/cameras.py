@@ -2,17 +2,31 @@
 
 from __future__ import annotations
 
-from typing import Any
+from typing import Annotated, Any
 
 from fastapi import APIRouter, HTTPException, Request, Response
 from pydantic import BaseModel, Field, field_validator
 
+from app.api.routes.inputs import MAX_ID, StrictJsonRoute, is_control
 from app.api.services import services
 from app.sources.live import parse_source
 from app.vision.motion import DEFAULT_METHOD, METHODS
 from app.vision.zones import as_polygons
 
-router = APIRouter(prefix="/api/cameras", tags=["cameras"])
+router = APIRouter(prefix="/api/cameras", tags=["cameras"], route_class=StrictJsonRoute)
+
+MAX_ZONE_POINTS = 1000
+"""Points in one ignore zone: plenty for a hand-drawn outline, bounded for fillPoly."""
+Sensitivity = Annotated[float, Field(ge=1, le=255, allow_inf_nan=False)]
+"""Grey-level threshold 1..255, lower = more sensitive; null = automatic."""
+MinArea = Annotated[float, Field(ge=0, allow_inf_nan=False)]
+Zones = list[Annotated[list[list[float]], Field(max_length=MAX_ZONE_POINTS)]]
+
+
+def _check_text(value: str | None) -> str | None:
+    if value is not None and any(is_control(c) for c in value):
+        raise ValueError("must not contain control characters")
+    return value
 
 
 def _check_method(value: str | None) -> str | None:
@@ -23,6 +37,7 @@ def _check_method(value: str | None) -> str | None:
 
 def _check_source(value: str | None) -> str | None:
     if value is not None:
+        _check_text(value)
         parse_source(value)
         return value.strip()
     return value
@@ -31,11 +46,11 @@ def _check_source(value: str | None) -> str | None:
 class CameraIn(BaseModel):
     name: str = Field(min_length=1, max_length=100)
     source: str = Field(min_length=1, max_length=2000)
-    sensitivity: float | None = Field(default=None, ge=1, le=255)
-    """Grey-level threshold 1..255, lower = more sensitive; null = automatic."""
-    min_area: float | None = Field(default=None, ge=0)
+    sensitivity: Sensitivity | None = None
+    min_area: MinArea | None = None
     method: str | None = None
 
+    _name = field_validator("name")(_check_text)
     _method = field_validator("method")(_check_method)
     _source = field_validator("source")(_check_source)
 
@@ -43,18 +58,19 @@ class CameraIn(BaseModel):
 class CameraPatch(BaseModel):
     name: str | None = Field(default=None, min_length=1, max_length=100)
     source: str | None = Field(default=None, min_length=1, max_length=2000)
-    sensitivity: float | None = Field(default=None, ge=1, le=255)
-    min_area: float | None = Field(default=None, ge=0)
+    sensitivity: Sensitivity | None = None
+    min_area: MinArea | None = None
     method: str | None = None
     show_mask: bool | None = None
-    mask: list[list[list[float]]] | None = Field(default=None, max_length=64)
+    mask: Zones | None = Field(default=None, max_length=64)
     """Ignore zones: polygons of [x, y] fractions of the frame; null or [] clears them."""
 
+    _name = field_validator("name")(_check_text)
     _method = field_validator("method")(_check_method)
 
     @field_validator("mask")
     @classmethod
-    def _check_mask(cls, value: list[list[list[float]]] | None) -> list[list[list[float]]]:
+    def _check_mask(cls, value: Zones | None) -> Zones:
         polygons = as_polygons(value or [])
         return [[list(point) for point in polygon] for polygon in polygons]
 
@@ -62,7 +78,8 @@ class CameraPatch(BaseModel):
 
 
 def _camera_or_404(request: Request, camera_id: int) -> dict[str, Any]:
-    camera = services(request).database.camera(camera_id)
+    # An id past SQLite's integers names no camera (and cannot even be looked up).
+    camera = services(request).database.camera(camera_id) if abs(camera_id) <= MAX_ID else None
     if camera is None:
         raise HTTPException(404, f"no camera {camera_id}")
     return camera
@@ -85,7 +102,8 @@ def add_camera(request: Request, body: CameraIn) -> dict[str, Any]:
         body.sensitivity,
     )
     camera = svc.database.camera(camera_id)
-    assert camera is not None
+    if camera is None:  # Deleted by another request in the meantime.
+        raise HTTPException(404, f"no camera {camera_id}")
     svc.cameras.start(camera)
     return {"id": camera_id}
 
@@ -128,7 +146,8 @@ def _set_active(request: Request, camera_id: int, active: bool) -> dict[str, Any
     svc = services(request)
     _camera_or_404(request, camera_id)
     camera = svc.database.update_camera(camera_id, active=int(active))
-    assert camera is not None
+    if camera is None:  # Deleted by another request in the meantime.
+        raise HTTPException(404, f"no camera {camera_id}")
     worker = svc.cameras.get(camera_id)
     if worker is not None:
         worker.set_active(active)

@@ -4,6 +4,7 @@ from typing import Any
 
 from fastapi import APIRouter, Query, Request
 
+from app.api.routes.inputs import CameraFilter, TimeFilter
 from app.api.services import services
 
 router = APIRouter(prefix="/api", tags=["events"])
@@ -12,9 +13,9 @@ router = APIRouter(prefix="/api", tags=["events"])
 @router.get("/events")
 def list_events(
     request: Request,
-    camera_id: int | None = None,
-    since: float | None = None,
-    until: float | None = None,
+    camera_id: CameraFilter = None,
+    since: TimeFilter = None,
+    until: TimeFilter = None,
     limit: int = Query(200, ge=1, le=5000),
 ) -> list[dict[str, Any]]:
     """Motion events, newest first; ``since``/``until`` are Unix times in seconds."""

@@ -5,16 +5,17 @@ from __future__ import annotations
 import time
 from collections.abc import Iterator
 from pathlib import Path
-from typing import Any
+from typing import Annotated, Any
 
 from fastapi import APIRouter, HTTPException, Query, Request
 from fastapi.responses import FileResponse, StreamingResponse
 from pydantic import BaseModel, Field
 
+from app.api.routes.inputs import MAX_ID, MAX_IDS, CameraFilter, StrictJsonRoute, TimeFilter
 from app.api.services import Services, services
 from app.storage.files import stream_zip
 
-router = APIRouter(prefix="/api", tags=["snapshots"])
+router = APIRouter(prefix="/api", tags=["snapshots"], route_class=StrictJsonRoute)
 
 
 def _view(row: dict[str, Any]) -> dict[str, Any]:
@@ -27,17 +28,20 @@ def _ids(text: str | None) -> list[int] | None:
     if text is None or text == "":
         return None
     try:
-        return [int(part) for part in text.split(",") if part.strip()]
+        ids = [int(part) for part in text.split(",") if part.strip()]
     except ValueError:
         raise HTTPException(422, "ids must be a comma-separated list of numbers") from None
+    if len(ids) > MAX_IDS or not all(0 <= i <= MAX_ID for i in ids):
+        raise HTTPException(422, f"ids must be at most {MAX_IDS:,} snapshot numbers")
+    return ids
 
 
 @router.get("/snapshots")
 def list_snapshots(
     request: Request,
-    camera_id: int | None = None,
-    since: float | None = None,
-    until: float | None = None,
+    camera_id: CameraFilter = None,
+    since: TimeFilter = None,
+    until: TimeFilter = None,
     kind: str | None = None,
     limit: int = Query(500, ge=1, le=10000),
 ) -> list[dict[str, Any]]:
@@ -49,9 +53,9 @@ def list_snapshots(
 @router.get("/snapshots.zip")
 def snapshots_zip(
     request: Request,
-    camera_id: int | None = None,
-    since: float | None = None,
-    until: float | None = None,
+    camera_id: CameraFilter = None,
+    since: TimeFilter = None,
+    until: TimeFilter = None,
     kind: str | None = None,
     ids: str | None = None,
     limit: int = Query(10000, ge=1, le=100000),
@@ -82,7 +86,7 @@ def _zip_entries(svc: Services, rows: list[dict[str, Any]]) -> Iterator[bytes]:
 @router.get("/snapshots/{snapshot_id}.jpg")
 def snapshot_file(request: Request, snapshot_id: int) -> FileResponse:
     svc = services(request)
-    row = svc.database.snapshot(snapshot_id)
+    row = svc.database.snapshot(snapshot_id) if abs(snapshot_id) <= MAX_ID else None
     if row is None:
         raise HTTPException(404, f"no snapshot {snapshot_id}")
     path = svc.snapshots.path(row["path"])
@@ -92,7 +96,7 @@ def snapshot_file(request: Request, snapshot_id: int) -> FileResponse:
 
 
 class DeleteRequest(BaseModel):
-    ids: list[int] = Field(min_length=1, max_length=100000)
+    ids: list[Annotated[int, Field(ge=0, le=MAX_ID)]] = Field(min_length=1, max_length=MAX_IDS)
 
 
 def _delete(svc: Services, ids: list[int]) -> dict[str, Any]:
@@ -110,7 +114,8 @@ def delete_snapshots(request: Request, body: DeleteRequest) -> dict[str, Any]:
 
 @router.delete("/snapshots/{snapshot_id}")
 def delete_snapshot(request: Request, snapshot_id: int) -> dict[str, Any]:
-    result = _delete(services(request), [snapshot_id])
+    in_range = abs(snapshot_id) <= MAX_ID
+    result = _delete(services(request), [snapshot_id]) if in_range else {"deleted": []}
     if not result["deleted"]:
         raise HTTPException(404, f"no snapshot {snapshot_id}")
     return result

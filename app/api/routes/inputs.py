@@ -1,0 +1,73 @@
+"""What the routers accept: ids SQLite can hold, names without control characters, and
+JSON bodies without NaN or Infinity.
+
+Python's json module reads ``NaN`` and ``Infinity``, which are not JSON, and turns
+``1e999`` into infinity. A body holding one was refused with a 422 whose echo of the input
+could not itself be written as JSON, so the client got a 500 instead. Routers built
+with ``route_class=StrictJsonRoute`` refuse such a body as malformed JSON.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+from collections.abc import Callable, Coroutine
+from typing import Annotated, Any
+
+from fastapi import Query, Request, Response
+from fastapi.routing import APIRoute
+
+MAX_ID = 2**63 - 1
+"""SQLite's largest integer: a larger id names nothing (and SQLite refuses to bind it)."""
+MAX_IDS = 100_000
+"""Ids in one request: SQLite binds at most 250,000 parameters in one statement."""
+
+CameraFilter = Annotated[int | None, Query(ge=0, le=MAX_ID)]
+"""``camera_id`` in a listing's filters."""
+TimeFilter = Annotated[float | None, Query(allow_inf_nan=False)]
+"""``since`` and ``until``: Unix seconds, finite."""
+
+
+def is_control(char: str) -> bool:
+    """C0 and C1 control characters (NUL, newline, escape...): never part of a name."""
+    return ord(char) < 32 or 127 <= ord(char) < 160
+
+
+def _refuse_constant(name: str) -> Any:
+    raise ValueError(f"{name} is not a JSON number")
+
+
+def _finite_float(text: str) -> float:
+    value = float(text)
+    if not math.isfinite(value):
+        raise ValueError(f"{text} is too large a number")
+    return value
+
+
+def strict_json(raw: bytes) -> Any:
+    """``json.loads`` that takes only numbers JSON and the API can represent."""
+    try:
+        return json.loads(raw, parse_constant=_refuse_constant, parse_float=_finite_float)
+    except json.JSONDecodeError:
+        raise
+    except ValueError as exc:  # Ours, bad UTF-8, integers past Python's digit limit.
+        raise json.JSONDecodeError(str(exc), raw.decode(errors="replace"), 0) from None
+
+
+class _StrictJsonRequest(Request):
+    async def json(self) -> Any:
+        if not hasattr(self, "_json"):
+            self._json = strict_json(await self.body())
+        return self._json
+
+
+class StrictJsonRoute(APIRoute):
+    """A route whose JSON body is read by ``strict_json`` (FastAPI's own 422 when it fails)."""
+
+    def get_route_handler(self) -> Callable[[Request], Coroutine[Any, Any, Response]]:
+        handler = super().get_route_handler()
+
+        async def strict_handler(request: Request) -> Response:
+            return await handler(_StrictJsonRequest(request.scope, request.receive))
+
+        return strict_handler

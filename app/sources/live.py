@@ -4,7 +4,9 @@ A source is opened, read frame by frame and closed by one worker thread. A
 failure to open or a lost stream is a ``SourceError`` with a readable reason;
 the worker retries with backoff. ``paced`` sources (the demo scene, a file)
 would deliver frames as fast as they decode, so the worker paces them at
-``fps``; live sources deliver at their own rate.
+``fps``; live sources deliver at their own rate. Where a stream is MJPEG,
+FFmpeg hands over the camera's own JPEGs, decoded later only as far as needed
+(``app.sources.frames``).
 """
 
 from __future__ import annotations
@@ -12,14 +14,15 @@ from __future__ import annotations
 import re
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Literal, Protocol, cast
+from typing import Literal, Protocol
 from urllib.parse import unquote, urlparse
 
 import cv2
+import numpy as np
 
 from app.sources.files import frame_rate
+from app.sources.frames import DecodedFrame, JpegFrame, SourceFrame
 from app.sources.synthetic import MovingObject, Scene
-from app.vision.types import Image
 
 SourceKind = Literal["demo", "device", "rtsp", "http", "file"]
 
@@ -72,8 +75,8 @@ class FrameSource(Protocol):
     paced: bool
     description: str
 
-    def read(self) -> Image:
-        """The next frame; raises SourceError when the source is lost."""
+    def read(self) -> SourceFrame:
+        """The next frame; SourceError when the source is lost, FrameError for one bad frame."""
         ...
 
     def close(self) -> None: ...
@@ -158,10 +161,10 @@ class DemoSource:
         self.description = f"demo scene {self.scene.size[0]}x{self.scene.size[1]}"
         self._index = 0
 
-    def read(self) -> Image:
+    def read(self) -> SourceFrame:
         frame = self.scene.frame(self._index % self.scene.frames)
         self._index += 1
-        return frame
+        return DecodedFrame(frame)
 
     def close(self) -> None:
         pass
@@ -176,6 +179,7 @@ class FileSource:
         if not path.is_file():
             raise SourceError(f"file not found: {path}")
         self.path = path
+        self._packets = False
         self._capture = self._open()
         self.fps = frame_rate(self._capture)
         self.description = f"file {path.name} at {self.fps:g} fps"
@@ -186,13 +190,14 @@ class FileSource:
         if not capture.isOpened():
             capture.release()
             raise SourceError(f"not a video FFmpeg can decode: {self.path.name}")
+        self._packets = jpeg_packets(capture)
         return capture
 
-    def read(self) -> Image:
+    def read(self) -> SourceFrame:
         ok, frame = self._capture.read()
         if ok and frame is not None:
             self._frames_in_loop += 1
-            return cast(Image, frame)
+            return as_frame(frame, self._packets)
         if self._frames_in_loop == 0:
             raise SourceError(f"no decodable frames in {self.path.name}")
         self._capture.release()  # End of file: start again.
@@ -202,7 +207,7 @@ class FileSource:
         if not ok or frame is None:
             raise SourceError(f"no decodable frames in {self.path.name}")
         self._frames_in_loop = 1
-        return cast(Image, frame)
+        return as_frame(frame, self._packets)
 
     def close(self) -> None:
         self._capture.release()
@@ -213,8 +218,9 @@ class CaptureSource:
 
     paced = False
 
-    def __init__(self, capture: cv2.VideoCapture, description: str) -> None:
+    def __init__(self, capture: cv2.VideoCapture, description: str, packets: bool) -> None:
         self._capture = capture
+        self._packets = packets
         self.fps = frame_rate(capture)
         self.description = description
 
@@ -224,7 +230,7 @@ class CaptureSource:
         if not capture.isOpened():
             capture.release()
             raise SourceError(f"no camera at {'index ' + target if target.isdigit() else target}")
-        return cls(capture, f"device {target}")
+        return cls(capture, f"device {target}", packets=False)
 
     @classmethod
     def network(cls, url: str, open_timeout_ms: int, read_timeout_ms: int) -> CaptureSource:
@@ -240,13 +246,28 @@ class CaptureSource:
         if not capture.isOpened():
             capture.release()
             raise SourceError(f"cannot open stream from {host}")
-        return cls(capture, f"{urlparse(url).scheme} stream from {host}")
+        packets = jpeg_packets(capture)
+        return cls(capture, f"{urlparse(url).scheme} stream from {host}", packets)
 
-    def read(self) -> Image:
+    def read(self) -> SourceFrame:
         ok, frame = self._capture.read()
         if not ok or frame is None:
             raise SourceError("stream lost")
-        return cast(Image, frame)
+        return as_frame(frame, self._packets)
 
     def close(self) -> None:
         self._capture.release()
+
+
+JPEG_FOURCCS = frozenset({b"MJPG", b"JPEG", b"AVRN", b"LJPG", b"DMB1"})
+
+
+def jpeg_packets(capture: cv2.VideoCapture) -> bool:
+    """Switch an MJPEG stream to handing over its JPEGs undecoded; True when it did."""
+    fourcc = int(capture.get(cv2.CAP_PROP_FOURCC)).to_bytes(4, "little").upper()
+    return fourcc in JPEG_FOURCCS and bool(capture.set(cv2.CAP_PROP_FORMAT, -1))
+
+
+def as_frame(data: np.ndarray, packet: bool) -> SourceFrame:
+    """What ``VideoCapture.read`` gave: a JPEG packet (FrameError if it is not one) or pixels."""
+    return JpegFrame(data.tobytes()) if packet else DecodedFrame(data)

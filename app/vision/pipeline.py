@@ -106,7 +106,12 @@ class Pipeline:
         self.method = create_method(name, self.method.sensitivity)
         self.config = replace(self.config, method=name)
 
-    def process(self, frame: Image, time_s: float | None = None) -> FrameResult:
+    def process(
+        self, frame: Image, time_s: float | None = None, frame_width: int | None = None
+    ) -> FrameResult:
+        """One frame, in order. ``frame_width``: the width of the original picture when
+        ``frame`` is a reduced copy of it (decoded at reduced scale); boxes, areas and
+        speeds then come back in the original's pixels."""
         index = self._index
         self._index += 1
         if time_s is None:
@@ -115,7 +120,7 @@ class Pipeline:
         gray = clock("grayscale", to_gray, frame)
         stats = clock("histogram", grey_stats, gray)
         small = clock("downscale", self.downscale, gray)
-        scale = gray.shape[1] / small.shape[1]
+        scale = (frame_width or gray.shape[1]) / small.shape[1]
         small = clock("denoise", self.denoise, small)
         small = clock("enhance", self.enhance, small)
         motion: MotionResult = clock("segment", self.method.apply, small)

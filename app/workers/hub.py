@@ -1,9 +1,10 @@
 """The latest frame of a camera, and waiting for the next one from async code.
 
-A worker publishes a ``LiveFrame`` per decoded frame: the raw picture and what
-was found in it. Nothing is drawn or encoded then. The first viewer that wants
-a frame's JPEG draws and encodes it, and every other viewer gets those bytes:
-one encode per frame whatever the number of viewers, none without viewers.
+A worker publishes a ``LiveFrame`` per frame: the source's frame and what was
+found in it. Nothing is decoded, drawn or encoded then. The first viewer that
+wants a frame's JPEG draws and encodes it, and every other viewer gets those
+bytes: one encode per frame whatever the number of viewers, none without
+viewers. With nothing to draw, a camera's own JPEG is passed on as it came.
 """
 
 from __future__ import annotations
@@ -14,15 +15,18 @@ import threading
 import time
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
-from typing import cast
 
 import cv2
 import numpy as np
 
+from app.sources.frames import SourceFrame
 from app.vision.annotate import Annotator, overlay_mask
 from app.vision.detections import Detection
 from app.vision.histogram import GreyStats, grey_histogram, grey_stats, render_histogram
 from app.vision.types import GrayImage, Image, Mask
+
+HISTOGRAM_WIDTH = 320
+"""A histogram needs no more pixels than this (a JPEG is decoded at reduced scale)."""
 
 ANNOTATOR = Annotator()
 """One annotator for every camera: it holds no state."""
@@ -40,7 +44,7 @@ class EncodeCounter:
 class LiveFrame:
     seq: int
     ts: float
-    frame: Image
+    source: SourceFrame
     detections: Sequence[Detection] = ()
     trails: Mapping[int, Sequence[tuple[float, float]]] | None = None
     mask: Mask | None = None
@@ -53,7 +57,7 @@ class LiveFrame:
     _histogram: bytes | None = None
 
     def annotated(self) -> Image:
-        picture = self.frame
+        picture = self.source.image()
         if self.mask is not None:
             picture = overlay_mask(picture, self.mask)
         if self.detections or self.trails:
@@ -63,21 +67,19 @@ class LiveFrame:
     def jpeg(self) -> bytes:
         with self._lock:
             if self._jpeg is None:
-                self._jpeg = encode_jpeg(self.annotated(), self.quality)
-                if self.counter is not None:
-                    self.counter.frames += 1
+                untouched = self.mask is None and not self.detections and not self.trails
+                if untouched and self.source.jpeg is not None:
+                    self._jpeg = self.source.jpeg
+                else:
+                    self._jpeg = encode_jpeg(self.annotated(), self.quality)
+                    if self.counter is not None:
+                        self.counter.frames += 1
             return self._jpeg
 
     def histogram_jpeg(self) -> bytes:
         with self._lock:
             if self._histogram is None:
-                gray: GrayImage
-                if self.gray is not None:
-                    gray = self.gray
-                elif self.frame.ndim == 2:
-                    gray = self.frame
-                else:
-                    gray = cast(GrayImage, cv2.cvtColor(self.frame, cv2.COLOR_BGR2GRAY))
+                gray = self.gray if self.gray is not None else self.source.gray(HISTOGRAM_WIDTH)
                 stats = self.stats or grey_stats(gray)
                 picture = render_histogram(grey_histogram(gray), stats, 256, 120)
                 self._histogram = encode_jpeg(picture, 85)

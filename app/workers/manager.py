@@ -6,6 +6,8 @@ import threading
 import time
 from typing import Any
 
+import cv2
+
 from app.core.config import Settings
 from app.storage.db import Database
 from app.storage.files import SnapshotStore
@@ -25,6 +27,8 @@ class CameraManager:
         self._lock = threading.Lock()
 
     def start_all(self) -> None:
+        if self.settings.opencv_threads:
+            cv2.setNumThreads(self.settings.opencv_threads)
         for camera in self.db.cameras():
             self.start(camera)
 

@@ -48,8 +48,8 @@ def test_demo_loops_with_motion() -> None:
     source = DemoSource()
     assert source.paced and source.fps == 15.0
     frames = [source.read() for _ in range(source.scene.frames + 3)]
-    assert frames[0].shape == (272, 480, 3)
-    assert (frames[-3] == frames[0]).all(), "the scene loops"
+    assert frames[0].image().shape == (272, 480, 3)
+    assert (frames[-3].image() == frames[0].image()).all(), "the scene loops"
     assert len({len(source.scene.truth(i)) for i in range(source.scene.frames)}) > 1
     assert max(len(source.scene.truth(i)) for i in range(source.scene.frames)) >= 2
 
@@ -59,7 +59,7 @@ def test_file_loops_at_its_own_rate(tmp_path: Path) -> None:
     assert isinstance(source, FileSource)
     assert source.paced and source.fps == pytest.approx(FPS)
     frames = [source.read() for _ in range(25)]  # Two and a half loops.
-    assert all(f.shape == (240, 320, 3) for f in frames)
+    assert all(f.image().shape == (240, 320, 3) for f in frames)
     source.close()
 
 
@@ -84,7 +84,7 @@ def test_http_mjpeg_camera() -> None:
         source = open_source(parse_source(camera.url), 3000, 2000)
         assert isinstance(source, CaptureSource) and not source.paced
         frames = [source.read() for _ in range(5)]
-        assert all(f.shape == (240, 320, 3) for f in frames)
+        assert all(f.image().shape == (240, 320, 3) for f in frames)
         camera.stop()  # The camera dies: read() gives up within the read timeout.
         started = time.monotonic()
         with pytest.raises(SourceError, match="stream lost"):
@@ -110,7 +110,7 @@ def test_device_path_uses_the_capture_code_path(tmp_path: Path) -> None:
     # No /dev/video* here: a device given by path goes through the same capture code.
     source = CaptureSource.device(str(write_video(tmp_path / "dev.avi", frames=5)))
     assert not source.paced
-    assert source.read().shape == (240, 320, 3)
+    assert source.read().image().shape == (240, 320, 3)
     source.close()
 
 

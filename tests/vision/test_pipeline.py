@@ -1,5 +1,6 @@
 import cv2
 import numpy as np
+import pytest
 
 from app.sources.synthetic import MovingObject, Scene
 from app.vision.pipeline import Pipeline, PipelineConfig
@@ -35,6 +36,24 @@ def test_every_stage_is_timed_and_boxes_come_back_in_input_pixels():
     (found,) = last.detections
     assert found.box.iou(truth.box) > 0.8
     assert last.time_s == (SCENE.frames - 1) / SCENE.fps
+
+
+def test_a_reduced_copy_gives_boxes_speeds_and_areas_of_the_original():
+    """What a camera does with a JPEG decoded at half scale: same objects, same units."""
+    full = Pipeline(PipelineConfig(), fps=SCENE.fps)
+    reduced = Pipeline(PipelineConfig(), fps=SCENE.fps)
+    for i in range(SCENE.frames):
+        frame = SCENE.frame(i)
+        half = cv2.resize(cv2.cvtColor(frame, cv2.COLOR_BGR2GRAY), (320, 240), cv2.INTER_AREA)
+        expected = full.process(frame)
+        got = reduced.process(half, frame_width=640)
+    assert got.scale == expected.scale == 2.0
+    (a,) = expected.detections
+    (b,) = got.detections
+    assert b.box.iou(a.box) > 0.9
+    assert b.area == pytest.approx(a.area, rel=0.1)
+    assert b.speed_px_s == pytest.approx(a.speed_px_s, rel=0.05)
+    assert b.speed_px_s == pytest.approx(100.0, rel=0.1)
 
 
 def test_full_resolution_detection_when_asked():

@@ -23,6 +23,9 @@ class MotionEvent:
     max_area: float = 0.0
     peak_frame: int = 0
     track_ids: set[int] = field(default_factory=set)
+    announced: set[int] = field(default_factory=set)
+    """Tracks an alarm of this event has named."""
+    last_alarm_s: float = 0.0
 
     def as_dict(self) -> dict[str, object]:
         return {
@@ -46,8 +49,14 @@ class AlarmUpdate:
 
 
 class AlarmLogic:
-    def __init__(self, quiet_s: float = 1.0) -> None:
+    """``alarm_gap_s``: the shortest time between two alarms of one event. Objects that
+    join meanwhile are announced together by the next one (if still there), so a
+    crowd, or a camera so overloaded that its tracks break, cannot flood the disk
+    with snapshots."""
+
+    def __init__(self, quiet_s: float = 1.0, alarm_gap_s: float = 0.0) -> None:
         self.quiet_s = quiet_s
+        self.alarm_gap_s = alarm_gap_s
         self.current: MotionEvent | None = None
         self._last_motion_s = 0.0
         self._next_id = 1
@@ -66,7 +75,12 @@ class AlarmLogic:
             event = self.current
             event.end_frame, event.end_time_s = frame, time_s
             seen = {d.track_id for d in detections if d.track_id is not None}
-            newcomers = () if started else tuple(sorted(seen - event.track_ids))
+            newcomers: tuple[int, ...] = ()
+            if not started and time_s - event.last_alarm_s >= self.alarm_gap_s:
+                newcomers = tuple(sorted(seen - event.announced))
+            if started or newcomers:
+                event.announced.update(seen)
+                event.last_alarm_s = time_s
             event.track_ids.update(seen)
             if area > event.max_area:
                 event.max_area, event.peak_frame = area, frame

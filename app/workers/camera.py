@@ -8,26 +8,32 @@ reason), ``error`` (it never opened: the reason, retried with backoff), and
 
 from __future__ import annotations
 
+import contextlib
 import logging
 import threading
 import time
 from collections import deque
 from typing import Any
 
+import cv2
+
 from app.core.config import Settings
 from app.events.alarm import AlarmLogic, MotionEvent
+from app.sources.frames import FrameError, SourceFrame
 from app.sources.live import FrameSource, SourceError, open_source, parse_source
 from app.storage.db import Database
 from app.storage.files import SnapshotStore
 from app.vision.annotate import difference_picture
 from app.vision.detections import Detection
 from app.vision.pipeline import FrameResult, Pipeline, PipelineConfig
-from app.vision.types import Image
 from app.vision.zones import as_polygons
 from app.workers.bus import EventBus
 from app.workers.hub import ANNOTATOR, EncodeCounter, FrameHub, LiveFrame, encode_jpeg
 
 log = logging.getLogger("vigil.camera")
+
+STABLE_FRAMES = 100
+"""A worker that handled this many frames since its last restart was not failing in a row."""
 
 SETTING_FIELDS = ("sensitivity", "min_area", "method", "show_mask", "mask")
 
@@ -76,6 +82,7 @@ class CameraWorker:
         self._last_status = 0.0
         self._source: FrameSource | None = None
         self._was_live = False
+        self._failures = 0
 
     # Control, from any thread -------------------------------------------------------------
 
@@ -127,40 +134,63 @@ class CameraWorker:
         backoff = self.settings.reconnect_min_s
         try:
             while not self._stop.is_set():
+                frames_before = self.frames
                 try:
-                    spec = parse_source(self.source_text)
-                    source = open_source(
-                        spec, self.settings.open_timeout_ms, self.settings.read_timeout_ms
-                    )
-                except (SourceError, ValueError) as exc:
-                    self._failed(str(exc), backoff)
-                    backoff = min(backoff * 2, self.settings.reconnect_max_s)
-                    continue
-                except Exception as exc:  # An OpenCV or OS error: show it, retry.
-                    log.exception("camera %s: cannot open %s", self.camera_id, self.source_text)
-                    self._failed(f"cannot open source: {exc}", backoff)
-                    backoff = min(backoff * 2, self.settings.reconnect_max_s)
-                    continue
-                self._source = source
-                try:
-                    self._stream(source)
-                    backoff = self.settings.reconnect_min_s
-                except SourceError as exc:
-                    # An open event ends with the picture; detection starts afresh on return.
-                    self._deactivate(time.time())
-                    backoff = self.settings.reconnect_min_s
-                    self._lost(str(exc), backoff)
+                    backoff = self._connect_and_stream(backoff)
                 except Exception as exc:
-                    log.exception("camera %s failed", self.camera_id)
-                    self._deactivate(time.time())  # E.g. a new frame size: a fresh model.
-                    self._lost(f"worker error: {exc}", backoff)
-                    backoff = min(backoff * 2, self.settings.reconnect_max_s)
-                finally:
-                    self._source = None
-                    source.close()
+                    self._worker_failed(exc, self.frames - frames_before)
         finally:
-            self._deactivate(time.time())
+            with contextlib.suppress(Exception):  # Ending the open event is best effort here.
+                self._deactivate(time.time())
             self._set_state("stopped", "")
+
+    def _connect_and_stream(self, backoff: float) -> float:
+        """Open the source and stream until it is lost; the backoff for the next attempt.
+
+        Source failures are the camera's: shown, retried with backoff. Any other
+        exception is a fault of the worker itself and reaches ``_worker_failed``.
+        """
+        try:
+            spec = parse_source(self.source_text)
+            source = open_source(spec, self.settings.open_timeout_ms, self.settings.read_timeout_ms)
+        except (SourceError, ValueError) as exc:
+            self._failed(str(exc), backoff)
+            return min(backoff * 2, self.settings.reconnect_max_s)
+        except (cv2.error, OSError) as exc:
+            log.exception("camera %s: cannot open %s", self.camera_id, self.source_text)
+            self._failed(f"cannot open source: {exc}", backoff)
+            return min(backoff * 2, self.settings.reconnect_max_s)
+        self._source = source
+        try:
+            self._stream(source)
+        except SourceError as exc:
+            # An open event ends with the picture; detection starts afresh on return.
+            self._deactivate(time.time())
+            self._lost(str(exc), self.settings.reconnect_min_s)
+        finally:
+            self._source = None
+            source.close()
+        return self.settings.reconnect_min_s
+
+    def _worker_failed(self, exc: Exception, frames_handled: int) -> None:
+        """A fault of the worker (a bug, the database): restart; if it keeps failing, say so.
+
+        Failures in a row (each within ``STABLE_FRAMES`` of the last restart) up to
+        ``worker_failures_limit`` show ``reconnecting``; from then on the camera shows
+        ``error`` with the last reason, and is retried at the longest backoff.
+        """
+        log.exception("camera %s: worker failed", self.camera_id)
+        self._failures = self._failures + 1 if frames_handled < STABLE_FRAMES else 1
+        with contextlib.suppress(Exception):  # The fault may be the database itself.
+            self._deactivate(time.time())
+        if self._failures >= self.settings.worker_failures_limit:
+            wait_s = self.settings.reconnect_max_s
+            reason = f"worker failed {self._failures} times in a row: {exc}"
+            self._set_state("error", f"{reason}; retrying every {wait_s:g} s")
+        else:
+            wait_s = self.settings.reconnect_min_s * 2**self._failures
+            self._set_state("reconnecting", f"worker error: {exc}; restarting")
+        self._stop.wait(wait_s)
 
     def _failed(self, reason: str, wait_s: float) -> None:
         state = "reconnecting" if self._was_live else "error"
@@ -176,20 +206,29 @@ class CameraWorker:
         period = 1.0 / source.fps if source.paced and source.fps > 0 else 0.0
         due = time.monotonic()
         first = True
+        bad_frames = 0
         while not self._stop.is_set():
             if period:
                 delay = due - time.monotonic()
                 if delay > 0 and self._stop.wait(delay):
                     return
                 due = max(due + period, time.monotonic() - 1.0)  # Catch up at most a second.
-            frame = source.read()
-            if first:
-                self._was_live = True
-                self._set_state("live", "")
-                first = False
-            self._handle(frame)
+            try:
+                frame = source.read()
+                if first:
+                    self._was_live = True
+                    self._set_state("live", "")
+                    first = False
+                self._handle(frame)
+            except FrameError as exc:
+                # One bad frame is skipped; a camera that sends nothing else is lost.
+                bad_frames += 1
+                if bad_frames >= self.settings.bad_frames_limit:
+                    raise SourceError(f"{exc} ({bad_frames} frames in a row)") from exc
+                continue
+            bad_frames = 0
 
-    def _handle(self, frame: Image) -> None:
+    def _handle(self, frame: SourceFrame) -> None:
         now_mono = time.monotonic()
         now = time.time()
         self._apply_pending(now, getattr(self._source, "fps", 25.0))
@@ -202,7 +241,9 @@ class CameraWorker:
         )
         pipeline, alarms = self._pipeline, self._alarms
         if pipeline is not None and alarms is not None:
-            result = pipeline.process(frame, now_mono - self._activated_at)
+            # Detection needs grey at its own width only: a JPEG decodes to that directly.
+            gray = frame.gray(pipeline.config.detect_width)
+            result = pipeline.process(gray, now_mono - self._activated_at, frame.size[0])
             self.processed += 1
             live.detections = result.detections
             live.trails = pipeline.tracker.trails()
@@ -212,7 +253,7 @@ class CameraWorker:
             self.objects = len(result.detections)
             self.threshold = result.threshold
             self.motion = float(sum(d.area for d in result.detections)) / (
-                frame.shape[0] * frame.shape[1]
+                frame.size[0] * frame.size[1]
             )
             update = alarms.update(result.index, result.time_s, result.detections)
             if update.started is not None:
@@ -233,7 +274,7 @@ class CameraWorker:
         self._config.update(pending)
         if want_active and self._pipeline is None:
             self._pipeline = self._new_pipeline(fps)
-            self._alarms = AlarmLogic(self.settings.quiet_s)
+            self._alarms = AlarmLogic(self.settings.quiet_s, self.settings.alarm_gap_s)
             self._activated_at = time.monotonic()
         elif not want_active and self._pipeline is not None:
             self._deactivate(now)
@@ -264,38 +305,62 @@ class CameraWorker:
         return Pipeline(config, fps)
 
     def _deactivate(self, now: float) -> None:
-        if self._alarms is not None:
-            ended = self._alarms.finish()
-            if ended is not None:
-                self._motion_end(ended, now)
-        self._pipeline = None
+        alarms = self._alarms
+        self._pipeline = None  # First: detection stops even if ending the event fails.
         self._alarms = None
         self.objects = 0
         self.motion = 0.0
         self.threshold = None
+        if alarms is not None:
+            ended = alarms.finish()
+            if ended is not None:
+                self._motion_end(ended, now)
 
     # Alarms -------------------------------------------------------------------------------
 
     def _alarm(self, event: MotionEvent, live: LiveFrame, result: FrameResult, now: float) -> None:
-        """A new event, or a new object within the open one: snapshots and an ``alarm``."""
+        """A new event, or a new object within the open one: snapshots and an ``alarm``.
+
+        The event row is committed before the alarm goes out, so every event a client
+        hears of is in the database. A snapshot the disk refuses (full, read-only)
+        costs only the pictures: the event stands and the alarm goes out without them;
+        a ``status`` message with ``storage_error`` marks the start and the end of
+        such a spell, once each.
+        """
         detections: list[Detection] = list(result.detections)
         boxes = [d.box.as_list() for d in detections]
-        picture = ANNOTATOR(live.frame, detections, live.trails)
-        height, width = live.frame.shape[:2]
-        difference = difference_picture(result.difference, (width, height))
+        picture = ANNOTATOR(live.source.image(), detections, live.trails)
+        difference = difference_picture(result.difference, live.source.size)
         event_id = self._event_rows.get(event.id)
         if event_id is None:
             track_ids = sorted(d.track_id for d in detections if d.track_id is not None)
             event_id = self.db.add_event(self.camera_id, now, boxes, event.max_area, track_ids)
             self._event_rows[event.id] = event_id
+        failing_before = self.snapshots.failure(self.camera_id)
         ids: dict[str, int] = {}
         for kind, image in (("frame", picture), ("difference", difference)):
             data = encode_jpeg(image, 90)
-            relative = self.snapshots.save(self.camera_id, now, kind, data, event_id)
+            try:
+                relative = self.snapshots.save(self.camera_id, now, kind, data, event_id)
+            except OSError:
+                break  # The store keeps the reason; the second picture would fail alike.
             ids[kind] = self.db.add_snapshot(
                 self.camera_id, event_id, now, kind, relative, len(data)
             )
+        failing = self.snapshots.failure(self.camera_id)
+        if failing != failing_before:
+            if failing:
+                log.warning(
+                    "camera %s: snapshots not saved under %s: %s",
+                    self.camera_id,
+                    self.snapshots.root,
+                    failing,
+                )
+            else:
+                log.info("camera %s: snapshots saved again", self.camera_id)
+            self.bus.publish({"type": "status", **self.status(), "storage_error": failing})
         self.last_alarm = now
+        urls = {kind: f"/api/snapshots/{snapshot_id}.jpg" for kind, snapshot_id in ids.items()}
         self.bus.publish(
             {
                 "type": "alarm",
@@ -306,9 +371,9 @@ class CameraWorker:
                 "frame": result.index,
                 "boxes": boxes,
                 "objects": [_detection(d) for d in detections],
-                "snapshot": f"/api/snapshots/{ids['frame']}.jpg",
-                "snapshot_id": ids["frame"],
-                "difference": f"/api/snapshots/{ids['difference']}.jpg",
+                "snapshot": urls.get("frame"),
+                "snapshot_id": ids.get("frame"),
+                "difference": urls.get("difference"),
             }
         )
 

@@ -198,7 +198,12 @@ class WsClient:
 
 
 class MjpegCamera:
-    """A real HTTP MJPEG camera on loopback, serving ``frame_at`` frames; stop() and start() it."""
+    """A real HTTP MJPEG camera on loopback, serving ``frame_at`` frames; stop() and start() it.
+
+    ``mode`` makes it misbehave as real cameras do: ``"silent"`` accepts connections
+    and never answers, ``"stall"`` stops in the middle of a frame, ``"garbage"`` sends
+    parts that are not JPEGs; ``"normal"`` again and it behaves.
+    """
 
     def __init__(self, fps: float = FPS) -> None:
         self.fps = fps
@@ -207,6 +212,7 @@ class MjpegCamera:
         self._thread: threading.Thread | None = None
         self.alive = threading.Event()
         self.served = 0
+        self.mode = "normal"
 
     @property
     def url(self) -> str:
@@ -215,12 +221,18 @@ class MjpegCamera:
     def start(self) -> MjpegCamera:
         camera = self
         base = background()
+        noise = np.random.default_rng(5)
+
+        def misbehaving(mode: str) -> bool:
+            return camera.alive.is_set() and camera.mode == mode
 
         class Handler(BaseHTTPRequestHandler):
             def log_message(self, *args: Any) -> None:
                 pass
 
             def do_GET(self) -> None:
+                while misbehaving("silent"):
+                    time.sleep(0.05)
                 self.send_response(200)
                 self.send_header("Content-Type", "multipart/x-mixed-replace; boundary=cam")
                 self.end_headers()
@@ -230,12 +242,19 @@ class MjpegCamera:
                         ok, data = cv2.imencode(".jpg", frame_at(index % 45, base))
                         assert ok
                         part = data.tobytes()
-                        self.wfile.write(
+                        if camera.mode == "garbage":
+                            part = noise.integers(0, 256, len(part), dtype=np.uint8).tobytes()
+                        head = (
                             b"--cam\r\nContent-Type: image/jpeg\r\n"
                             + f"Content-Length: {len(part)}\r\n\r\n".encode()
-                            + part
-                            + b"\r\n"
                         )
+                        if camera.mode == "stall":
+                            self.wfile.write(head + part[: len(part) // 2])
+                            self.wfile.flush()
+                            while misbehaving("stall"):
+                                time.sleep(0.05)
+                            return  # This connection is spoilt; the client reconnects.
+                        self.wfile.write(head + part + b"\r\n")
                         self.wfile.flush()
                         camera.served += 1
                         index += 1

@@ -47,3 +47,17 @@ def test_a_new_object_joining_an_open_event_is_announced():
     update = logic.update(2, 0.2, both)
     assert update.started is None and update.newcomers == (2,)
     assert logic.update(3, 0.3, both).newcomers == ()
+
+
+def test_objects_joining_within_the_alarm_gap_are_announced_together_by_the_next_alarm():
+    logic = AlarmLogic(alarm_gap_s=1.0)
+    crowd = [
+        Detection(Box(20 * i, 0, 10, 10), (20 * i + 5, 5), 100.0, track_id=i) for i in (1, 2, 3)
+    ]
+    assert logic.update(0, 0.0, crowd[:1]).started is not None
+    assert logic.update(1, 0.4, crowd[:2]).newcomers == ()  # Too soon after the first alarm.
+    assert logic.update(2, 0.8, crowd).newcomers == ()
+    assert logic.update(3, 1.0, crowd).newcomers == (2, 3)  # One alarm names both.
+    assert logic.update(4, 2.5, crowd).newcomers == ()
+    event = logic.finish()
+    assert event is not None and event.track_ids == {1, 2, 3}

@@ -6,36 +6,12 @@ import asyncio
 from pathlib import Path
 from typing import Any
 
-import pytest
-
 from app.sources.synthetic import MovingObject, Scene
-from app.storage import Database, SnapshotStore
-from app.vision.motion import DEFAULT_METHOD
-from app.workers.bus import EventBus
+from app.storage import Database
 from app.workers.camera import CameraWorker
-from tests.api.vigil_livekit import MjpegCamera, live_settings, wait_for, write_video
+from tests.api.vigil_livekit import MjpegCamera, wait_for, write_video
 from tests.conftest import write_scene_video
-
-
-@pytest.fixture
-def parts(tmp_path: Path) -> dict[str, Any]:
-    settings = live_settings(tmp_path / "data")
-    db = Database(settings.db_path)
-    return {
-        "settings": settings,
-        "db": db,
-        "snapshots": SnapshotStore(settings.snapshots_dir),
-        "bus": EventBus(),
-    }
-
-
-def _worker(parts: dict[str, Any], source: str, **camera: Any) -> CameraWorker:
-    db: Database = parts["db"]
-    cam_id = db.add_camera("cam", source, DEFAULT_METHOD, 100.0, camera.get("sensitivity"))
-    row = db.camera(cam_id)
-    assert row is not None
-    row.update(camera)
-    return CameraWorker(row, parts["settings"], db, parts["snapshots"], parts["bus"])
+from tests.workers.conftest import make_worker
 
 
 def _messages_until_motion_end(parts: dict[str, Any], worker: CameraWorker) -> list[dict[str, Any]]:
@@ -64,7 +40,7 @@ def _messages_until_motion_end(parts: dict[str, Any], worker: CameraWorker) -> l
 def test_frames_are_encoded_only_when_watched_and_once(
     parts: dict[str, Any], tmp_path: Path
 ) -> None:
-    worker = _worker(parts, str(write_video(tmp_path / "v.avi")))
+    worker = make_worker(parts, str(write_video(tmp_path / "v.avi")))
     worker.start()
     try:
         wait_for(lambda: worker.frames >= 20, 10, "frames")
@@ -72,10 +48,19 @@ def test_frames_are_encoded_only_when_watched_and_once(
         assert worker.processed == 0, "no detection before Activate"
         latest = worker.hub.latest
         assert latest is not None
-        assert latest.jpeg() is latest.jpeg()  # Many viewers, one encode.
+        # Nothing to draw: viewers get the camera's own JPEG, neither decoded nor encoded.
+        assert latest.source.jpeg is not None and latest.jpeg() == latest.source.jpeg
         latest.histogram_jpeg()
-        assert (worker.encodes.frames, worker.encodes.histograms) == (1, 1)
+        assert (worker.encodes.frames, worker.encodes.histograms) == (0, 1)
         assert worker.state == "live" and 10 < worker.fps < 20, worker.fps
+        worker.set_active(True)
+        boxed = wait_for(
+            lambda: (item := worker.hub.latest) is not None and item.detections and item,
+            10,
+            "a frame with boxes",
+        )
+        assert boxed.jpeg() is boxed.jpeg()  # Many viewers, one encode.
+        assert worker.encodes.frames == 1 and boxed.jpeg() != boxed.source.jpeg
     finally:
         worker.request_stop()
         assert worker.join(5)
@@ -83,7 +68,7 @@ def test_frames_are_encoded_only_when_watched_and_once(
 
 
 def test_alarm_writes_event_and_snapshots(parts: dict[str, Any], tmp_path: Path) -> None:
-    worker = _worker(parts, str(write_video(tmp_path / "v.avi")))
+    worker = make_worker(parts, str(write_video(tmp_path / "v.avi")))
     received = _messages_until_motion_end(parts, worker)
     (alarm,) = [m for m in received if m["type"] == "alarm"]
     db: Database = parts["db"]
@@ -100,7 +85,7 @@ def test_alarm_writes_event_and_snapshots(parts: dict[str, Any], tmp_path: Path)
 
 def test_lost_camera_reconnects(parts: dict[str, Any]) -> None:
     camera = MjpegCamera().start()
-    worker = _worker(parts, camera.url)
+    worker = make_worker(parts, camera.url)
     states: list[str] = []
     worker.start()
     try:
@@ -125,7 +110,7 @@ def test_lost_camera_reconnects(parts: dict[str, Any]) -> None:
 
 
 def test_settings_apply_on_next_frame(parts: dict[str, Any], tmp_path: Path) -> None:
-    worker = _worker(parts, str(write_video(tmp_path / "v.avi")), active=True)
+    worker = make_worker(parts, str(write_video(tmp_path / "v.avi")), active=True)
     worker.start()
     try:
         wait_for(lambda: worker.processed > 3, 10, "detection running")
@@ -162,7 +147,7 @@ def test_each_new_object_in_an_open_event_gives_its_own_alarm(
         ),
     )  # fmt: skip
     video = write_scene_video(scene, tmp_path / "two.avi")
-    worker = _worker(parts, str(video))
+    worker = make_worker(parts, str(video))
     received = _messages_until_motion_end(parts, worker)
     alarms = [m for m in received if m["type"] == "alarm"]
     assert len(alarms) == 2

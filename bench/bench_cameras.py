@@ -1,22 +1,30 @@
-"""How many live cameras one Vigil process sustains, and Vigil's CPU per frame beside Motion's.
+"""How many live cameras one machine sustains with Vigil's camera workers; CPU beside Motion.
 
     python bench/bench_cameras.py [--quick] [--warmup S] [--window S] [--repeat R]
                                   [--max-cameras N] [--data DIR] [--synthetic]
 
-Every camera is a thread that decodes a looping 640x480 MJPG AVI with
-cv2.VideoCapture and paces itself to 25 fps like a real camera (when it falls
-behind it does not sleep, catching up at most a second, as Vigil's camera
-worker does), then runs Vigil's default Pipeline on every frame, and with a
-viewer also draws the detections and encodes a JPEG (quality 80) per frame.
+Every camera is Vigil's own ``app.workers.camera.CameraWorker`` reading a
+looping 640x480 25 fps MJPG AVI (``file://CLIP``): it takes the file's JPEGs
+undecoded, paces itself at the file's frame rate, decodes nothing while it is
+neither activated nor watched, decodes grey at reduced scale for detection
+when activated, and saves its alarms (events, snapshots) in a database and
+snapshot folder that the process's cameras share, as the server's do; each
+trial starts with empty ones. Camera i plays copy i % 4 of the clip, each
+copy starting a quarter of the loop further on. A viewer is what the MJPEG
+route does for one client: it awaits each new frame of the camera's hub and
+asks for its JPEG (drawn and encoded once, or the camera's own JPEG when
+nothing is drawn on it).
 
-(a) CPU per 640x480 frame: decode only, decode + pipeline (Vigil's worker
-    loop), + viewer; one paced camera in a worker process; and the Motion
-    daemon (/usr/bin/motion) on the same clip in the same run.
-(b) The largest number N of such cameras for which every camera reaches
-    >= 24 fps over the measured window, with the cameras as threads of one
-    process and spread over two processes (multiprocessing, spawn), each with
-    OpenCV's own thread count and with cv2.setNumThreads(1), without and with
-    a viewer per camera.
+(a) CPU per 640x480 frame of one camera paced at 25 fps in a worker process:
+    idle (live, not activated) and activated, each unwatched and with one
+    viewer, with OpenCV's own thread count and with cv2.setNumThreads(1);
+    and the Motion daemon (/usr/bin/motion) on the same clip in the same run.
+(b) The largest number N of activated cameras for which every camera runs
+    detection on >= 24 frames per second over the measured window, with the
+    cameras as threads of one process and spread over two processes
+    (multiprocessing, spawn), OpenCV at the server's thread count (its
+    ``opencv_threads`` setting, 1 by default), unwatched and with one viewer
+    per camera.
 
 See bench/README.md for what each figure means.
 """
@@ -24,6 +32,7 @@ See bench/README.md for what each figure means.
 from __future__ import annotations
 
 import argparse
+import asyncio
 import contextlib
 import itertools
 import math
@@ -39,96 +48,58 @@ from collections.abc import Callable, Iterator, Sequence
 from dataclasses import dataclass
 from multiprocessing.connection import Connection
 from pathlib import Path
-from typing import Any, Literal
+from typing import Any
 
 import cv2
-from _common import (
-    Cell,
-    add_data_argument,
-    fmt,
-    make_pipeline,
-    median,
-    print_environment,
-    print_table,
-)
+from _common import Cell, add_data_argument, fmt, median, print_environment, print_table
 from bench_pipeline import load_footage, ping_pong, resized, write_mjpg
 
+from app.core.config import Settings
+from app.storage import Database, SnapshotStore
 from app.vision.motion import DEFAULT_METHOD
-from app.vision.types import Image
-from app.workers.hub import LiveFrame
+from app.workers.bus import EventBus
+from app.workers.camera import CameraWorker
+from app.workers.hub import FrameHub
 
 FPS = 25.0
 SIZE = (640, 480)
 SOURCE_FRAMES = 300
 """Source frames taken from the clip; played forwards then backwards (~24 s at 25 fps)."""
+CLIP_PHASES = 4
+"""Copies of the loop written, each starting 1/CLIP_PHASES of it after the one before:
+camera i plays copy i % CLIP_PHASES, so cameras do not all see the same moment (and alarm
+together). A single camera plays copy 0, as Motion does."""
 SUSTAINED_FPS = 24.0
-CATCH_UP_S = 1.0
-"""A camera that falls behind catches up at most this much (as app.workers.camera does)."""
-VIEWER_QUALITY = 80
 MOTION = Path("/usr/bin/motion")
 GUESS_SHARE = 0.8
-"""The first search starts at the cameras this share of the CPUs would carry."""
+"""A search starts at the cameras this share of the CPUs left free would carry."""
 START_LEAD_S = 0.3
-"""Between 'every worker is ready' and the common start time."""
-
-Work = Literal["decode", "detect", "view"]
-WORK_LABELS: dict[Work, str] = {
-    "decode": "decode only",
-    "detect": "decode + pipeline (worker loop, no viewer)",
-    "view": "decode + pipeline + viewer (annotate, JPEG q80)",
-}
+"""Between 'every worker process is ready' and the common start time."""
+STOP_TIMEOUT_S = 5.0
 
 
-# --- one camera -------------------------------------------------------------------------
+@dataclass(frozen=True)
+class Mode:
+    """What a camera does: detection on (activated) or off, one viewer or none."""
+
+    activated: bool
+    watched: bool
+
+    @property
+    def label(self) -> str:
+        state = "activated" if self.activated else "idle"
+        return f"{state}, {'one viewer' if self.watched else 'unwatched'}"
 
 
-class Camera:
-    """A looping file read like a live camera, and the work done on each of its frames."""
-
-    def __init__(self, clip: Path, work: Work) -> None:
-        self.clip = clip
-        self.work = work
-        self.capture = self._open()
-        self.pipeline = make_pipeline(DEFAULT_METHOD, FPS)
-
-    def _open(self) -> cv2.VideoCapture:
-        capture = cv2.VideoCapture(str(self.clip))
-        if not capture.isOpened():
-            raise RuntimeError(f"OpenCV cannot open {self.clip}")
-        return capture
-
-    def read(self) -> Image:
-        ok, frame = self.capture.read()
-        if not ok:  # End of the file: start it again, as a camera would keep streaming.
-            self.capture.release()
-            self.capture = self._open()
-            ok, frame = self.capture.read()
-            if not ok:
-                raise RuntimeError(f"OpenCV cannot decode {self.clip}")
-        return frame
-
-    def step(self) -> None:
-        """One frame: decode, and detect (and draw + encode for a viewer) as ``work`` says."""
-        frame = self.read()
-        if self.work == "decode":
-            return
-        result = self.pipeline.process(frame)
-        if self.work == "view":
-            live = LiveFrame(
-                result.index,
-                result.time_s,
-                frame,
-                result.detections,
-                self.pipeline.tracker.trails(),
-                quality=VIEWER_QUALITY,
-            )
-            live.jpeg()
-
-    def close(self) -> None:
-        self.capture.release()
+IDLE = Mode(activated=False, watched=False)
+ACTIVE = Mode(activated=True, watched=False)
+ACTIVE_WATCHED = Mode(activated=True, watched=True)
+IDLE_WATCHED = Mode(activated=False, watched=True)
+CPU_MODES = (IDLE, ACTIVE, ACTIVE_WATCHED, IDLE_WATCHED)
+"""The rows of table (a), in the order they run."""
 
 
-# --- paced cameras in a worker process -----------------------------------------------------
+# --- real camera workers in a worker process ----------------------------------------------
 
 
 @dataclass(frozen=True)
@@ -143,62 +114,179 @@ class Windows:
         first = t0 + self.warmup
         return [first + k * self.length for k in range(self.count + 1)]
 
-    def index(self, t0: float, now: float) -> int | None:
-        k = math.floor((now - t0 - self.warmup) / self.length)
-        return k if 0 <= k < self.count else None
-
 
 @dataclass(frozen=True)
 class TrialSpec:
     """What one worker process runs in one trial."""
 
-    clip: Path
-    work: Work
+    clips: tuple[Path, ...]
+    """One per camera: the file it plays."""
     offsets: tuple[float, ...]
-    """One per camera: its first frame is due this long after the common start."""
+    """One per camera: its worker starts this long after the common start."""
+    mode: Mode
     windows: Windows
+    folder: Path
+    """Where the process makes this trial's data folder (database, snapshots)."""
 
 
 @dataclass(frozen=True)
 class WorkerResult:
-    frames: list[list[int]]
-    """Per camera, frames processed in each window."""
+    """One worker process's counts, per camera and window."""
+
+    read: list[list[int]]
+    """Frames the camera read (``CameraWorker.frames``)."""
+    processed: list[list[int]]
+    """Frames run through detection (``CameraWorker.processed``)."""
+    served: list[list[int]]
+    """JPEGs its viewer got (all zero when unwatched)."""
     cpu_s: list[float]
-    """Process CPU seconds (all threads) in each window."""
-    errors: list[str]
-    """Tracebacks of camera threads that failed."""
+    """Per window, process CPU seconds (all threads: cameras, viewers, event loop)."""
+    seconds: list[float]
+    """Per window, its length as this process sampled it (a busy process wakes late)."""
+    alarms: int
+    """Alarms (each one saved frame snapshot) over all the windows."""
+    problems: list[str]
+    """A camera not live at a window bound (its state and reason), a viewer's traceback."""
 
 
-def pace(
-    camera: Camera,
-    t0: float,
-    offset: float,
-    windows: Windows,
-    counts: list[int],
-    errors: list[str],
-) -> None:
-    """Camera thread: ``paced_loop``, its failure recorded for the parent to report."""
-    try:
-        paced_loop(camera, t0, offset, windows, counts)
-    except Exception:
-        errors.append(traceback.format_exc())
+class Viewers:
+    """One viewer per hub, as ``app/api/routes/streams.py`` serves MJPEG, minus the socket.
+
+    An asyncio event loop in its own thread (the server's loop); each viewer awaits
+    ``hub.next`` and gets the frame's JPEG with ``asyncio.to_thread``, like the route.
+    A viewer ends when its hub closes (the camera stops).
+    """
+
+    def __init__(self, hubs: Sequence[FrameHub]) -> None:
+        self.hubs = hubs
+        self.served = [0] * len(hubs)
+        self.errors: list[str] = []
+        self._thread = threading.Thread(
+            target=asyncio.run, args=(self._watch_all(),), name="viewers", daemon=True
+        )
+        self._thread.start()
+
+    async def _watch_all(self) -> None:
+        await asyncio.gather(*(self._watch(i, hub) for i, hub in enumerate(self.hubs)))
+
+    async def _watch(self, index: int, hub: FrameHub) -> None:
+        hub.viewers += 1
+        seq = 0
+        try:
+            while not hub.closed:
+                item = await hub.next(seq, 1.0)
+                if item is None:
+                    continue
+                seq = item.seq
+                await asyncio.to_thread(item.jpeg)
+                self.served[index] += 1
+        except Exception:
+            self.errors.append(traceback.format_exc())
+        finally:
+            hub.viewers -= 1
+
+    def join(self, timeout: float) -> None:
+        self._thread.join(timeout)
 
 
-def paced_loop(
-    camera: Camera, t0: float, offset: float, windows: Windows, counts: list[int]
-) -> None:
-    """Process frames at FPS from ``t0 + offset`` to the end of the last window."""
-    period = 1.0 / FPS
-    end = windows.bounds(t0)[-1]
-    due = t0 + offset
-    while (now := time.monotonic()) < end:
-        if due > now:
-            time.sleep(due - now)
-        due = max(due + period, time.monotonic() - CATCH_UP_S)
-        camera.step()
-        k = windows.index(t0, time.monotonic())
-        if k is not None:
-            counts[k] += 1
+@dataclass(frozen=True)
+class Mark:
+    """The counters of one process at one window bound."""
+
+    cpu_s: float
+    at: float
+    """time.monotonic() when sampled."""
+    wall: float
+    read: list[int]
+    processed: list[int]
+    served: list[int]
+
+
+class LiveCameras:
+    """A trial's cameras in this process: real CameraWorkers on the clip, sharing one
+    database, snapshot store and event bus in ``data_dir`` as the server's cameras do."""
+
+    def __init__(self, spec: TrialSpec, data_dir: Path) -> None:
+        self.spec = spec
+        self.settings = Settings(data_dir=data_dir, demo_camera=False)
+        self.db = Database(self.settings.db_path)
+        snapshots = SnapshotStore(self.settings.snapshots_dir)
+        bus = EventBus()
+        self.workers: list[CameraWorker] = []
+        self.started: list[CameraWorker] = []
+        for index, clip in enumerate(spec.clips):
+            camera_id = self.db.add_camera(
+                f"bench {index}",
+                f"file://{clip}",
+                DEFAULT_METHOD,
+                self.settings.default_min_area,
+            )
+            row = self.db.camera(camera_id)
+            assert row is not None
+            row["active"] = spec.mode.activated
+            self.workers.append(CameraWorker(row, self.settings, self.db, snapshots, bus))
+
+    def run(self, t0: float) -> WorkerResult:
+        """Start each camera at ``t0`` + its offset, count at every window bound, stop them."""
+        viewers = Viewers([w.hub for w in self.workers]) if self.spec.mode.watched else None
+        for offset, worker in zip(self.spec.offsets, self.workers, strict=True):  # Ascending.
+            sleep_until(t0 + offset)
+            worker.start()
+            self.started.append(worker)
+        marks: list[Mark] = []
+        problems: list[str] = []
+        for bound in self.spec.windows.bounds(t0):
+            sleep_until(bound)
+            marks.append(self._mark(viewers))
+            problems += [
+                f"camera {i} {w.state}: {w.reason}"
+                for i, w in enumerate(self.workers)
+                if w.state != "live"
+            ]
+        self._stop()
+        if viewers is not None:
+            viewers.join(STOP_TIMEOUT_S)
+            problems += viewers.errors
+        frames = self.db.snapshots(
+            since=marks[0].wall, until=marks[-1].wall, kind="frame", limit=1_000_000
+        )
+        return WorkerResult(
+            read=per_window([m.read for m in marks]),
+            processed=per_window([m.processed for m in marks]),
+            served=per_window([m.served for m in marks]),
+            cpu_s=[b.cpu_s - a.cpu_s for a, b in itertools.pairwise(marks)],
+            seconds=[b.at - a.at for a, b in itertools.pairwise(marks)],
+            alarms=len(frames),
+            problems=problems,
+        )
+
+    def _mark(self, viewers: Viewers | None) -> Mark:
+        return Mark(
+            cpu_s=time.process_time(),
+            at=time.monotonic(),
+            wall=time.time(),
+            read=[w.frames for w in self.workers],
+            processed=[w.processed for w in self.workers],
+            served=list(viewers.served) if viewers else [0] * len(self.workers),
+        )
+
+    def _stop(self) -> None:
+        for worker in self.workers:
+            worker.request_stop()
+        for worker in self.started:
+            worker.join(STOP_TIMEOUT_S)
+
+    def close(self) -> None:
+        self._stop()
+        self.db.close()
+
+
+def per_window(counters: Sequence[list[int]]) -> list[list[int]]:
+    """Per camera, the increase over each window of a counter sampled at every bound."""
+    return [
+        [after[c] - before[c] for before, after in itertools.pairwise(counters)]
+        for c in range(len(counters[0]))
+    ]
 
 
 def sleep_until(moment: float) -> None:
@@ -207,39 +295,19 @@ def sleep_until(moment: float) -> None:
         time.sleep(delay)
 
 
-def run_paced(
-    cameras: Sequence[Camera], offsets: Sequence[float], t0: float, windows: Windows
-) -> WorkerResult:
-    """Every camera in its own thread; the process's CPU time sampled at each window bound."""
-    counts = [[0] * windows.count for _ in cameras]
-    errors: list[str] = []
-    threads = [
-        threading.Thread(target=pace, args=(cam, t0, off, windows, cnt, errors), daemon=True)
-        for cam, off, cnt in zip(cameras, offsets, counts, strict=True)
-    ]
-    for thread in threads:
-        thread.start()
-    marks = []
-    for bound in windows.bounds(t0):
-        sleep_until(bound)
-        marks.append(time.process_time())
-    for thread in threads:
-        thread.join()
-    return WorkerResult(counts, [b - a for a, b in itertools.pairwise(marks)], errors)
-
-
 def worker_main(conn: Connection, cv_threads: int | None) -> None:
     """A worker process: set OpenCV's threads, then run trials until told to stop (None)."""
     if cv_threads is not None:
         cv2.setNumThreads(cv_threads)
     conn.send(cv2.getNumThreads())
     while (spec := conn.recv()) is not None:
-        cameras = [Camera(spec.clip, spec.work) for _ in spec.offsets]
-        conn.send("ready")
-        t0 = conn.recv()
-        conn.send(run_paced(cameras, spec.offsets, t0, spec.windows))
-        for camera in cameras:
-            camera.close()
+        with tempfile.TemporaryDirectory(prefix="data-", dir=spec.folder) as data_dir:
+            cameras = LiveCameras(spec, Path(data_dir))
+            try:
+                conn.send("ready")
+                conn.send(cameras.run(conn.recv()))
+            finally:
+                cameras.close()
 
 
 class WorkerGroup:
@@ -283,7 +351,7 @@ class WorkerGroup:
             with contextlib.suppress(OSError):
                 conn.send(None)
         for proc in self.procs:
-            proc.join(5)
+            proc.join(STOP_TIMEOUT_S)
             if proc.is_alive():
                 proc.terminate()
 
@@ -313,32 +381,55 @@ def busy_cores(before: tuple[int, int], after: tuple[int, int]) -> float:
 class Trial:
     """N cameras over a group's processes, measured over the windows."""
 
-    fps: list[list[float]]
-    """Per window, every camera's frames per second."""
+    mode: Mode
+    read_fps: list[list[float]]
+    """Per window, every camera's frames read per second."""
+    processed_fps: list[list[float]]
+    """Per window, every camera's frames through detection per second."""
+    viewer_fps: list[list[float]]
+    """Per window, every camera's viewer's JPEGs per second."""
     cpu_s: list[float]
     """Per window, CPU seconds of all the worker processes together."""
     frames: list[int]
-    """Per window, frames processed by all cameras."""
+    """Per window, frames read by all cameras."""
     machine: list[float]
     """Per window, CPUs busy on the whole machine (this benchmark and any other work)."""
-    window_s: float
+    alarms: int
+    """Alarms saved by all cameras over the windows."""
+    cores: list[float]
+    """Per window, CPUs the worker processes used (their CPU seconds per second)."""
 
     @property
     def sustained(self) -> bool:
-        return all(min(fps, default=0.0) >= SUSTAINED_FPS for fps in self.fps)
+        """Every camera ran detection on >= SUSTAINED_FPS frames a second in every window."""
+        return all(min(fps, default=0.0) >= SUSTAINED_FPS for fps in self.processed_fps)
 
     def ms_per_frame(self) -> list[float]:
+        """Per window, worker processes' CPU milliseconds per frame read."""
         return [
             1000 * c / f if f else float("nan")
             for c, f in zip(self.cpu_s, self.frames, strict=True)
         ]
 
 
-def run_trial(group: WorkerGroup, clip: Path, cameras: int, work: Work, windows: Windows) -> Trial:
+def run_trial(
+    group: WorkerGroup,
+    clips: Sequence[Path],
+    folder: Path,
+    cameras: int,
+    mode: Mode,
+    windows: Windows,
+) -> Trial:
+    """N cameras, camera i playing clips[i % len(clips)] and started i/N of a frame period
+    after the first (real cameras are not in phase), dealt alternately to the processes."""
     period = 1.0 / FPS
-    offsets = [i * period / cameras for i in range(cameras)]  # Real cameras are not in phase.
+    offsets = [i * period / cameras for i in range(cameras)]
+    played = [clips[i % len(clips)] for i in range(cameras)]
     share = len(group.conns)
-    specs = [TrialSpec(clip, work, tuple(offsets[p::share]), windows) for p in range(share)]
+    specs = [
+        TrialSpec(tuple(played[p::share]), tuple(offsets[p::share]), mode, windows, folder)
+        for p in range(share)
+    ]
     t0 = group.start(specs)
     marks = []
     for bound in windows.bounds(t0):
@@ -346,46 +437,29 @@ def run_trial(group: WorkerGroup, clip: Path, cameras: int, work: Work, windows:
         marks.append(machine_jiffies())
     results = group.results()
     for result in results:
-        if result.errors:
-            raise SystemExit(f"a camera thread failed:\n{result.errors[0]}")
-    fps = [
-        [r.frames[c][k] / windows.length for r in results for c in range(len(r.frames))]
-        for k in range(windows.count)
-    ]
-    cpu = [sum(r.cpu_s[k] for r in results) for k in range(windows.count)]
-    frames = [sum(counts[k] for r in results for counts in r.frames) for k in range(windows.count)]
-    machine = [busy_cores(a, b) for a, b in itertools.pairwise(marks)]
-    return Trial(fps, cpu, frames, machine, windows.length)
+        if result.problems:
+            raise SystemExit("a camera or viewer failed:\n" + "\n".join(result.problems[:5]))
+
+    def fps(counts: Callable[[WorkerResult], list[list[int]]]) -> list[list[float]]:
+        return [
+            [camera[k] / r.seconds[k] for r in results for camera in counts(r)]
+            for k in range(windows.count)
+        ]
+
+    return Trial(
+        mode=mode,
+        read_fps=fps(lambda r: r.read),
+        processed_fps=fps(lambda r: r.processed),
+        viewer_fps=fps(lambda r: r.served),
+        cpu_s=[sum(r.cpu_s[k] for r in results) for k in range(windows.count)],
+        frames=[sum(c[k] for r in results for c in r.read) for k in range(windows.count)],
+        machine=[busy_cores(a, b) for a, b in itertools.pairwise(marks)],
+        alarms=sum(r.alarms for r in results),
+        cores=[sum(r.cpu_s[k] / r.seconds[k] for r in results) for k in range(windows.count)],
+    )
 
 
-# --- (a) CPU per frame --------------------------------------------------------------------
-
-
-def cpu_per_frame(clip: Path, work: Work, frames: int) -> float:
-    """Milliseconds of this process's CPU per frame, unpaced, after a short warm-up."""
-    camera = Camera(clip, work)
-    for _ in range(10):
-        camera.step()
-    start = time.process_time()
-    for _ in range(frames):
-        camera.step()
-    spent = time.process_time() - start
-    camera.close()
-    return 1000 * spent / frames
-
-
-def breakdown(clip: Path, frames: int, repeats: int, cv_threads: int) -> dict[Work, float]:
-    """Median ms per frame of each kind of work, run round-robin ``repeats`` times."""
-    previous = cv2.getNumThreads()
-    cv2.setNumThreads(cv_threads)
-    samples: dict[Work, list[float]] = {work: [] for work in WORK_LABELS}
-    try:
-        for _ in range(repeats):
-            for work in WORK_LABELS:
-                samples[work].append(cpu_per_frame(clip, work, frames))
-    finally:
-        cv2.setNumThreads(previous)
-    return {work: median(values) for work, values in samples.items()}
+# --- (a) CPU per frame beside Motion ------------------------------------------------------
 
 
 def proc_cpu_seconds(pid: int) -> float:
@@ -464,116 +538,127 @@ def measure_motion(clip: Path, folder: Path, windows: Windows) -> MotionRun:
 
 @dataclass(frozen=True)
 class PacedRow:
-    """One camera paced at FPS in a fresh worker process."""
+    """One camera paced at FPS in a worker process, in one mode, over R windows."""
 
-    work: Work
     cv_threads: int | None
+    """None = OpenCV's own choice."""
     reported_threads: int
     trial: Trial
 
     @property
     def label(self) -> str:
-        return f"Vigil {WORK_LABELS[self.work]}"
+        return f"Vigil {self.trial.mode.label}"
 
     @property
-    def how(self) -> str:
-        fps = median([f for window in self.trial.fps for f in window])
-        how = "default" if self.cv_threads is None else "set"
-        return f"OpenCV {self.reported_threads} threads ({how}), {fps:.1f} fps"
+    def threads(self) -> str:
+        return f"{self.reported_threads} ({'default' if self.cv_threads is None else 'set'})"
 
     @property
     def ms(self) -> float:
+        """Median over the windows of CPU ms per frame read."""
         return median(self.trial.ms_per_frame())
 
 
-def measure_paced(clip: Path, windows: Windows) -> list[PacedRow]:
-    """Decode only and the worker loop, with OpenCV's threads, then the loop with one."""
+def median_fps(series: list[list[float]]) -> float:
+    """The median over every window and camera of a Trial's per-window fps lists."""
+    return median([f for window in series for f in window])
+
+
+def measure_paced(clip: Path, folder: Path, windows: Windows) -> list[PacedRow]:
+    """Every mode of CPU_MODES with OpenCV's own threads, then with one thread."""
     rows = []
-    plan: tuple[tuple[int | None, tuple[Work, ...]], ...] = (
-        (None, ("decode", "detect")),
-        (1, ("detect",)),
-    )
-    for cv_threads, works in plan:
+    for cv_threads in (None, 1):
         with worker_group(1, cv_threads) as group:
-            for work in works:
-                trial = run_trial(group, clip, 1, work, windows)
-                rows.append(PacedRow(work, cv_threads, group.cv_threads[0], trial))
+            for mode in CPU_MODES:
+                trial = run_trial(group, [clip], folder, 1, mode, windows)
+                rows.append(PacedRow(cv_threads, group.cv_threads[0], trial))
     return rows
 
 
-def measure_cpu(args: argparse.Namespace, clip: Path, tmp: Path) -> dict[str, float]:
+@dataclass(frozen=True)
+class CpuFigures:
+    """What section (a) hands to (b)'s search, from one camera with one OpenCV thread."""
+
+    unwatched_guess: int
+    """``capacity`` of the activated, unwatched camera."""
+    viewer_factor: float
+    """Activated unwatched ms / activated watched ms: the share of cameras a viewer leaves."""
+
+
+def measure_cpu(args: argparse.Namespace, clip: Path, tmp: Path) -> CpuFigures:
     """Section (a); returns the figures that seed section (b)'s search."""
-    default_threads = cv2.getNumThreads()
-    settings = sorted({default_threads, 1}, reverse=True)
-    parts = {n: breakdown(clip, args.cpu_frames, args.repeat, n) for n in settings}
-    windows = Windows(args.warmup, args.cpu_window, args.repeat_windows)
-    paced = measure_paced(clip, windows)
+    windows = Windows(args.warmup, args.cpu_window, args.repeat)
+    paced = measure_paced(clip, tmp, windows)
     motion: MotionRun | None = None
     if MOTION.is_file():
         motion = measure_motion(clip, tmp, Windows(args.warmup + 1, windows.length, windows.count))
-    print_breakdown(args, parts)
     print_paced(args, paced, motion)
-    loop = parts[default_threads]
-    viewer_ms = loop["view"] - loop["detect"]
-    return {"paced": paced[1].ms, "viewer_factor": paced[1].ms / (paced[1].ms + viewer_ms)}
-
-
-def print_breakdown(args: argparse.Namespace, parts: dict[int, dict[Work, float]]) -> None:
-    rows: list[list[Cell]] = []
-    for threads, by_work in parts.items():
-        for work, label in WORK_LABELS.items():
-            share = by_work["decode"] / by_work[work]
-            rows.append([f"Vigil {label}", threads, fmt(by_work[work], 2), f"{share:.0%}"])
-    print_table(
-        f"(a1) CPU per {SIZE[0]}x{SIZE[1]} frame, unpaced (as fast as it goes), one camera in "
-        f"this process (median of {args.repeat} runs of {args.cpu_frames} frames)",
-        ["work", "OpenCV threads", "ms CPU/frame", "decode share"],
-        rows,
-        note="    process CPU seconds (all threads) / frames; decode = cv2.VideoCapture.read",
+    one = {row.trial.mode: row for row in paced if row.cv_threads == 1}
+    return CpuFigures(
+        capacity(one[ACTIVE].trial, args.max_cameras), one[ACTIVE].ms / one[ACTIVE_WATCHED].ms
     )
 
 
 def print_paced(args: argparse.Namespace, paced: list[PacedRow], motion: MotionRun | None) -> None:
     motion_ms = median(motion.ms_per_frame) if motion is not None else float("nan")
     rows: list[list[Cell]] = [
-        [row.label, row.how, fmt(row.ms, 2), fmt(row.ms / motion_ms, 2)] for row in paced
+        [
+            row.label,
+            row.threads,
+            fmt(median_fps(row.trial.read_fps), 1),
+            fmt(median_fps(row.trial.processed_fps), 1),
+            fmt(median_fps(row.trial.viewer_fps), 1) if row.trial.mode.watched else "-",
+            fmt(row.ms, 2),
+            fmt(row.ms / motion_ms, 2),
+        ]
+        for row in paced
     ]
     if motion is not None:
         rows.append(
             [
-                f"Motion {motion_version()} (decode + detect)",
-                "motion -n; frames = window x 25",
+                f"Motion {motion_version()} (detection on)",
+                "-",
+                f"{FPS:g}",
+                f"{FPS:g}",
+                "-",
                 fmt(motion_ms, 2),
                 "1.00",
             ]
         )
     print_table(
-        f"(a2) CPU per frame of one camera paced at {FPS:g} fps in its own process, beside "
-        f"Motion on the same clip (median of {args.repeat_windows} windows of "
-        f"{args.cpu_window:g} s after a warm-up)",
-        ["program", "how", "ms CPU/frame", "x Motion"],
+        f"(a) CPU per {SIZE[0]}x{SIZE[1]} frame of one camera paced at {FPS:g} fps in its own "
+        f"process, beside Motion on the same clip (median of {args.repeat} windows of "
+        f"{args.cpu_window:g} s after a {args.warmup:g} s warm-up)",
+        [
+            "program",
+            "OpenCV threads",
+            "read fps",
+            "detect fps",
+            "viewer fps",
+            "ms CPU/frame",
+            "x Motion",
+        ],
         rows,
-        note="    x Motion: the row's ms/frame divided by Motion's (above 1 = costs more)",
+        note=(
+            "    ms CPU/frame: worker process CPU (all threads) / frames read; Motion's frames"
+            f" = window x {FPS:g}\n    x Motion: the row's ms/frame divided by Motion's"
+            " (above 1 = costs more)"
+        ),
     )
     if motion is None:
         print(f"Motion: skipped, {MOTION} is absent (Debian: apt-get install motion)")
-    elif motion.log_problems:
+        return
+    ratios = ", ".join(
+        f"{fmt(row.ms / motion_ms, 2)} with OpenCV {row.threads}"
+        for row in paced
+        if row.trial.mode == ACTIVE
+    )
+    print(f"Vigil activated unwatched / Motion, CPU per frame: {ratios}")
+    if motion.log_problems:
         print("Motion log errors/warnings:", *motion.log_problems[:5], sep="\n    ")
 
 
 # --- (b) cameras per process model --------------------------------------------------------
-
-
-@dataclass(frozen=True)
-class Model:
-    processes: int
-    cv_threads: int | None
-    """None = OpenCV's own choice."""
-
-    def label(self, reported: int) -> str:
-        who = "1 process (threads)" if self.processes == 1 else f"{self.processes} processes"
-        how = "default" if self.cv_threads is None else "set"
-        return f"{who}, OpenCV {reported} threads ({how})"
 
 
 def largest_sustained(
@@ -618,159 +703,167 @@ class Found:
     cameras: int
     bounded: bool
     """False when the search stopped at --max-cameras without a failure."""
-    ms_per_frame: float
-    """CPU per frame of the worker processes at that N."""
+    trial: Trial | None
+    """The trial of that N (None for N = 0)."""
 
     def __str__(self) -> str:
         return str(self.cameras) if self.bounded else f">={self.cameras}"
 
 
+def server_cv_threads() -> int | None:
+    """OpenCV threads per process in (b): what ``vigil serve`` sets before its cameras start
+    (``Settings.opencv_threads``, so ``VIGIL_OPENCV_THREADS`` counts; 0 = OpenCV's own
+    choice, None here)."""
+    return Settings().opencv_threads or None
+
+
+def model_label(processes: int, cv_threads: int) -> str:
+    who = "1 process (threads)" if processes == 1 else f"{processes} processes"
+    return f"{who}, OpenCV {cv_threads} thread{'s' if cv_threads != 1 else ''}"
+
+
 def search_model(
     args: argparse.Namespace,
-    clip: Path,
-    model: Model,
-    works: Sequence[Work],
-    guesses: dict[Work, int] | None,
-    cpu: dict[str, float],
-) -> tuple[str, dict[Work, Found]]:
-    """Largest sustained N without and with a viewer for one process model.
+    clips: Sequence[Path],
+    folder: Path,
+    processes: int,
+    modes: Sequence[Mode],
+    guesses: dict[Mode, int],
+) -> tuple[str, dict[Mode, Found]]:
+    """Largest sustained N of activated cameras, for each mode, over ``processes`` processes.
 
-    ``guesses`` are where the searches start (from models already measured); without them
-    the first starts from the single camera's CPU cost and the viewer's search from the
-    first's result scaled by the viewer's extra cost."""
+    ``guesses`` are where the searches start; a mode without one (the viewer, for the first
+    model) starts from the unwatched result scaled by the viewer's cost in (a)."""
     windows = Windows(args.warmup, args.window)
-    found: dict[Work, Found] = {}
-    with worker_group(model.processes, model.cv_threads) as group:
-        label = model.label(group.cv_threads[0])
+    found: dict[Mode, Found] = {}
+    with worker_group(processes, server_cv_threads()) as group:
+        label = model_label(processes, group.cv_threads[0])
         print(f"\n{label}:")
-        for work in works:
+        for mode in modes:
             tried: dict[int, Trial] = {}
 
-            def passes(n: int, work: Work = work, tried: dict[int, Trial] = tried) -> bool:
+            def passes(n: int, mode: Mode = mode, tried: dict[int, Trial] = tried) -> bool:
                 if n not in tried:
-                    tried[n] = run_trial(group, clip, n, work, windows)
-                    print_trial(n, work, tried[n])
+                    tried[n] = run_trial(group, clips, folder, n, mode, windows)
+                    print_trial(n, tried[n])
                 return tried[n].sustained
 
-            if guesses and work in guesses:
-                guess = guesses[work]
-            elif work == "detect":
-                guess = estimate(cpu["paced"], args.max_cameras)
-            else:
-                guess = math.floor(found["detect"].cameras * cpu["viewer_factor"])
             # A viewer only adds work: an N that fails without one fails with one.
-            ceiling = found["detect"].cameras + 1 if work == "view" else None
-            n, bounded = largest_sustained(passes, guess, ceiling, args.max_cameras)
-            ms = tried[n].ms_per_frame()[0] if n in tried else float("nan")
-            found[work] = Found(n, bounded, ms)
+            unwatched = found.get(ACTIVE)
+            ceiling = None
+            if mode.watched and unwatched is not None and unwatched.bounded:
+                ceiling = unwatched.cameras + 1
+            n, bounded = largest_sustained(passes, guesses[mode], ceiling, args.max_cameras)
+            found[mode] = Found(n, bounded, tried.get(n))
     return label, found
 
 
-def print_trial(n: int, work: Work, trial: Trial) -> None:
-    fps = trial.fps[0]
-    load = os.getloadavg()[0]
+def print_trial(n: int, trial: Trial) -> None:
+    detect = trial.processed_fps[0]
+    watched = "one viewer" if trial.mode.watched else "unwatched "
+    viewer = f"viewer fps {median(trial.viewer_fps[0]):4.1f}  " if trial.mode.watched else ""
     cores = os.cpu_count() or 1
     verdict = "sustained" if trial.sustained else "NOT sustained"
-    viewer = "viewer   " if work == "view" else "no viewer"
     print(
-        f"  N={n:<3d} {viewer}  fps min {min(fps):4.1f} median {median(fps):4.1f}  "
-        f"CPU {trial.cpu_s[0] / trial.window_s:4.2f} of machine's {trial.machine[0]:4.2f}/{cores}  "
-        f"{fmt(trial.ms_per_frame()[0], 2)} ms/frame  load {load:4.1f}  {verdict}"
+        f"  N={n:<3d} {watched}  detect fps min {min(detect):4.1f} "
+        f"median {median(detect):4.1f}  {viewer}"
+        f"CPU {trial.cores[0]:4.2f} of machine's {trial.machine[0]:4.2f}/{cores}  "
+        f"{fmt(trial.ms_per_frame()[0], 2)} ms/frame  {trial.alarms} alarms  "
+        f"load {os.getloadavg()[0]:4.1f}  {verdict}"
     )
 
 
-def estimate(ms_per_frame: float, limit: int) -> int:
-    """Cameras GUESS_SHARE of the CPUs could carry at one paced camera's CPU cost per frame."""
-    cores = os.cpu_count() or 1
-    if not ms_per_frame > 0:
+def capacity(trial: Trial, limit: int) -> int:
+    """Cameras that GUESS_SHARE of the CPUs other work left free during ``trial`` would carry
+    at the trial's CPU per frame (medians over its windows); from 1 to ``limit``."""
+    others = median(
+        [max(0.0, busy - ours) for busy, ours in zip(trial.machine, trial.cores, strict=True)]
+    )
+    free = max(0.0, (os.cpu_count() or 1) - others)
+    ms = median(trial.ms_per_frame())
+    if not ms > 0:
         return 1
-    return max(1, min(limit, math.floor(GUESS_SHARE * cores * 1000 / (FPS * ms_per_frame))))
+    return max(1, min(limit, math.floor(GUESS_SHARE * free * 1000 / (FPS * ms))))
 
 
-def measure_cameras(args: argparse.Namespace, clip: Path, cpu: dict[str, float]) -> None:
+def measure_cameras(
+    args: argparse.Namespace, clips: Sequence[Path], folder: Path, cpu: CpuFigures
+) -> None:
+    """Section (b): one process, then two, each searched unwatched then watched."""
     print(
-        f"\n(b) Cameras sustained: every camera >= {SUSTAINED_FPS:g} fps over {args.window:g} s "
-        f"after a {args.warmup:g} s warm-up; CPU = cores used by the worker processes "
-        "of the cores busy on the whole machine"
+        f"\n(b) Cameras sustained: every activated camera runs detection on >= "
+        f"{SUSTAINED_FPS:g} fps over {args.window:g} s after a {args.warmup:g} s warm-up; "
+        "CPU = cores used by the worker processes of the cores busy on the whole machine"
     )
-    plan = search_plan(args.quick)
-    results: dict[Model, dict[Work, Found]] = {}
-    labels: dict[Model, str] = {}
-    for model, works in plan:
-        guesses = first_guesses(model, results, args.max_cameras)
-        labels[model], results[model] = search_model(args, clip, model, works, guesses, cpu)
-    columns: list[Work] = ["detect"] if args.quick else ["detect", "view"]
-    rows = [[labels[m], *(str(results[m].get(w, "-")) for w in columns)] for m, _ in plan]
+    modes = (ACTIVE,) if args.quick else (ACTIVE, ACTIVE_WATCHED)
+    results: dict[int, dict[Mode, Found]] = {}
+    labels: dict[int, str] = {}
+    for processes in (1, 2):
+        guesses = next_guesses(results, cpu, args.max_cameras)
+        labels[processes], results[processes] = search_model(
+            args, clips, folder, processes, modes, guesses
+        )
     print_table(
-        f"(b) Largest N of {SIZE[0]}x{SIZE[1]} {FPS:g} fps cameras sustained",
-        ["process model", "no viewer", "one viewer each"][: 1 + len(columns)],
-        rows,
-        note="" if args.quick else "    -: not searched (one OpenCV thread: no viewer only)",
+        f"(b) Largest N of activated {SIZE[0]}x{SIZE[1]} {FPS:g} fps cameras sustained",
+        ["process model", "unwatched", "one viewer each"][: 1 + len(modes)],
+        [[labels[p], *(str(results[p][m]) for m in modes)] for p in results],
     )
 
 
-def search_plan(quick: bool) -> list[tuple[Model, tuple[Work, ...]]]:
-    """Process models and what each is searched for: 1 and 2 processes with OpenCV's own
-    thread count, without and with a viewer; then with one OpenCV thread, without a viewer.
-    ``--quick``: OpenCV's own thread count, without a viewer."""
-    if quick:
-        return [(Model(1, None), ("detect",)), (Model(2, None), ("detect",))]
-    both: tuple[Work, ...] = ("detect", "view")
-    return [
-        (Model(1, None), both),
-        (Model(2, None), both),
-        (Model(1, 1), ("detect",)),
-        (Model(2, 1), ("detect",)),
-    ]
-
-
-def first_guesses(
-    model: Model, results: dict[Model, dict[Work, Found]], limit: int
-) -> dict[Work, int] | None:
-    """Where a model's searches start: a measured model with as many processes gives its
-    result; else the last measured model gives the more of its result and what the CPUs
-    would carry at its CPU per frame there; None for the first model."""
+def next_guesses(
+    results: dict[int, dict[Mode, Found]], cpu: CpuFigures, limit: int
+) -> dict[Mode, int]:
+    """Where a model's searches start. The first model: the ``capacity`` of (a)'s activated
+    camera with one OpenCV thread, and that times (a)'s viewer factor with a viewer. A later
+    one: the more of the last model's result and the ``capacity`` of its trial there."""
     if not results:
-        return None
-    same = [m for m in results if m.processes == model.processes]
-    if same:
-        return {w: max(1, f.cameras) for w, f in results[same[-1]].items()}
+        return {
+            ACTIVE: cpu.unwatched_guess,
+            ACTIVE_WATCHED: max(1, math.floor(cpu.unwatched_guess * cpu.viewer_factor)),
+        }
     last = results[list(results)[-1]]
-    return {w: max(1, f.cameras, estimate(f.ms_per_frame, limit)) for w, f in last.items()}
+    return {
+        mode: max(1, found.cameras, capacity(found.trial, limit) if found.trial else 1)
+        for mode, found in last.items()
+    }
 
 
 # --- main ---------------------------------------------------------------------------------
 
 
-def make_clip(args: argparse.Namespace, folder: Path) -> tuple[Path, str]:
-    """The looping camera clip (640x480, 25 fps MJPG AVI) and where its frames came from."""
+def make_clips(args: argparse.Namespace, folder: Path) -> tuple[list[Path], str]:
+    """The looping camera clip (640x480, 25 fps MJPG AVI), first, then its copies starting
+    1/CLIP_PHASES, 2/CLIP_PHASES... of the loop further on; and where the frames came from."""
     footage = load_footage(args.data, SOURCE_FRAMES, args.synthetic)
     frames = resized(ping_pong(footage.frames, 2 * len(footage.frames) - 2), SIZE)
-    clip = write_mjpg(frames, folder / "camera.avi", FPS)
-    return clip, (
+    clips = []
+    for phase in range(CLIP_PHASES):
+        start = phase * len(frames) // CLIP_PHASES
+        loop = frames[start:] + frames[:start]  # The loop has no cut, so neither has this.
+        clips.append(write_mjpg(loop, folder / f"camera-{phase}.avi", FPS))
+    return clips, (
         f"{footage.description}; {len(footage.frames)} frames played forwards then backwards, "
         f"resized to {SIZE[0]}x{SIZE[1]}, written as an MJPG AVI at {FPS:g} fps "
-        f"({len(frames) / FPS:.1f} s, looped)"
+        f"({len(frames) / FPS:.1f} s, looped), and {CLIP_PHASES - 1} copies starting "
+        f"{len(frames) / FPS / CLIP_PHASES:.1f} s apart for the cameras of (b)"
     )
 
 
 def parse_args(argv: Sequence[str] | None = None) -> argparse.Namespace:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--quick", action="store_true", help="shorter windows, ~1 minute")
+    parser.add_argument("--quick", action="store_true", help="shorter windows, ~2 minutes")
     parser.add_argument("--warmup", type=float, default=None, help="seconds before measuring")
     parser.add_argument("--window", type=float, default=None, help="seconds measured per trial")
-    parser.add_argument("--repeat", type=int, default=None, help="runs of each CPU figure")
+    parser.add_argument("--repeat", type=int, default=None, help="windows of each CPU figure")
     parser.add_argument("--max-cameras", type=int, default=64, help="stop climbing here")
     parser.add_argument("--synthetic", action="store_true", help="synthetic scene, not footage")
     add_data_argument(parser)
     args = parser.parse_args(argv)
     quick = args.quick
-    args.warmup = args.warmup if args.warmup is not None else (1.5 if quick else 2.0)
-    args.window = args.window if args.window is not None else (3.0 if quick else 4.0)
+    args.warmup = args.warmup if args.warmup is not None else (2.0 if quick else 2.5)
+    args.window = args.window if args.window is not None else (2.0 if quick else 4.0)
     args.repeat = args.repeat if args.repeat is not None else (3 if quick else 5)
-    args.cpu_frames = 100 if quick else 150
-    args.cpu_window = 2.5 if quick else 3.0
-    args.repeat_windows = 2 if quick else 3
+    args.cpu_window = 1.0 if quick else 3.0
     if args.warmup < 0 or args.window <= 0 or args.repeat < 1 or args.max_cameras < 1:
         parser.error("--warmup >= 0, --window > 0, --repeat >= 1, --max-cameras >= 1")
     return args
@@ -781,10 +874,10 @@ def main(argv: Sequence[str] | None = None) -> None:
     started = time.perf_counter()
     print_environment("Vigil cameras benchmark")
     with tempfile.TemporaryDirectory(prefix="vigil-cameras-") as tmp:
-        clip, description = make_clip(args, Path(tmp))
+        clips, description = make_clips(args, Path(tmp))
         print(f"camera: {description}")
-        cpu = measure_cpu(args, clip, Path(tmp))
-        measure_cameras(args, clip, cpu)
+        cpu = measure_cpu(args, clips[0], Path(tmp))
+        measure_cameras(args, clips, Path(tmp), cpu)
     print(f"\ndone in {time.perf_counter() - started:.0f} s")
 
 

@@ -170,20 +170,18 @@ class Viewers:
         await asyncio.gather(*(self._watch(i, hub) for i, hub in enumerate(self.hubs)))
 
     async def _watch(self, index: int, hub: FrameHub) -> None:
-        hub.viewers += 1
         seq = 0
         try:
-            while not hub.closed:
-                item = await hub.next(seq, 1.0)
-                if item is None:
-                    continue
-                seq = item.seq
-                await asyncio.to_thread(item.jpeg)
-                self.served[index] += 1
+            with hub.watch("picture"):
+                while not hub.closed:
+                    item = await hub.next(seq, 1.0)
+                    if item is None:
+                        continue
+                    seq = item.seq
+                    await asyncio.to_thread(item.jpeg)
+                    self.served[index] += 1
         except Exception:
             self.errors.append(traceback.format_exc())
-        finally:
-            hub.viewers -= 1
 
     def join(self, timeout: float) -> None:
         self._thread.join(timeout)

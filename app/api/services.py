@@ -17,7 +17,7 @@ from app.storage.files import SnapshotStore, prune, prune_to_size
 from app.vision.motion import DEFAULT_METHOD
 from app.workers.analysis import AnalysisManager
 from app.workers.bus import EventBus
-from app.workers.camera import CameraWorker
+from app.workers.camera_host import Camera
 from app.workers.manager import CameraManager
 
 log = logging.getLogger("vigil")
@@ -66,7 +66,7 @@ class Services:
         if closed:
             log.info("closed %d event(s) left open when the server last stopped", closed)
         self._snapshots = SnapshotStore(settings.snapshots_dir)
-        self._cameras = CameraManager(settings, self.db, self._snapshots, self.bus)
+        self._cameras = CameraManager(settings, self.bus)
         self._analyses = AnalysisManager(
             self.db,
             self.bus,
@@ -77,7 +77,7 @@ class Services:
         if settings.demo_camera and not self.db.cameras():
             self.db.add_camera("demo", "demo", DEFAULT_METHOD, settings.default_min_area)
             log.info("no camera configured: added the demo camera")
-        self._cameras.start_all()
+        self._cameras.start_all(self.db.cameras())
         self._analyses.start()
         if settings.retention_days > 0 or settings.retention_mb > 0:
             self._pruner = threading.Thread(
@@ -121,7 +121,7 @@ class Services:
             "free_mb": free_mb,
             "snapshots_mb": round(self.database.snapshot_bytes() / MB, 3),
             "cap_mb": self.settings.retention_mb or None,
-            "error": self.snapshots.error,
+            "error": self.cameras.storage_error(),
         }
 
     def end_streams(self) -> None:
@@ -135,17 +135,13 @@ class Services:
         self.closing = True
         self._stopping.set()
         self.bus.close()
-        if self._cameras is not None:
-            for worker in self._cameras.all():
-                worker.request_stop()
         if self._analyses is not None:
             self._analyses.stop(timeout=2.0)
         if self._cameras is not None:
-            # A worker blocked in a network read returns within the read timeout; a thread
-            # still inside OpenCV when the interpreter exits would abort the process.
-            self._cameras.stop_all(timeout=self.settings.read_timeout_ms / 1000 + 1.0)
-            if self.db is not None and not any(w._thread.is_alive() for w in self._cameras.all()):
-                self.db.close()
+            # A worker blocked in a network read returns within the read timeout.
+            self._cameras.stop_all(timeout=self.settings.read_timeout_ms / 1000 + 2.0)
+        if self.db is not None:
+            self.db.close()
 
     def camera_view(self, camera: dict[str, Any]) -> dict[str, Any]:
         """A camera as the API shows it: its settings, its live state and its URLs."""
@@ -167,7 +163,7 @@ def services(request: HTTPConnection) -> Services:
     return cast(Services, request.app.state.services)
 
 
-def worker_or_404(request: Request, camera_id: int) -> CameraWorker:
+def worker_or_404(request: Request, camera_id: int) -> Camera:
     worker = services(request).cameras.get(camera_id)
     if worker is None:
         raise HTTPException(404, f"no camera {camera_id}")

@@ -10,9 +10,17 @@ from __future__ import annotations
 import asyncio
 import contextlib
 import threading
-from typing import Any
+from typing import Any, Protocol
 
 Message = dict[str, Any]
+
+
+class Publisher(Protocol):
+    """Where a worker sends its messages: the bus, or the pipe of a camera process."""
+
+    def publish(self, message: Message) -> None: ...
+
+
 Subscriber = asyncio.Queue[Message | None]
 
 

@@ -27,7 +27,7 @@ from app.vision.annotate import difference_picture
 from app.vision.detections import Detection
 from app.vision.pipeline import FrameResult, Pipeline, PipelineConfig
 from app.vision.zones import as_polygons
-from app.workers.bus import EventBus
+from app.workers.bus import Publisher
 from app.workers.hub import ANNOTATOR, EncodeCounter, FrameHub, LiveFrame, encode_jpeg
 
 log = logging.getLogger("vigil.camera")
@@ -45,7 +45,7 @@ class CameraWorker:
         settings: Settings,
         db: Database,
         snapshots: SnapshotStore,
-        bus: EventBus,
+        bus: Publisher,
     ) -> None:
         self.camera_id: int = camera["id"]
         self.name: str = camera["name"]
@@ -108,6 +108,8 @@ class CameraWorker:
 
     def update(self, **changes: Any) -> None:
         """New settings; the worker applies them before its next frame."""
+        if "name" in changes:
+            self.name = changes["name"]
         with self._lock:
             self._pending.update({k: v for k, v in changes.items() if k in SETTING_FIELDS})
 

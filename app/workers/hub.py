@@ -13,8 +13,9 @@ import asyncio
 import contextlib
 import threading
 import time
-from collections.abc import Mapping, Sequence
+from collections.abc import Callable, Iterator, Mapping, Sequence
 from dataclasses import dataclass, field
+from typing import Literal, Protocol
 
 import cv2
 import numpy as np
@@ -95,21 +96,78 @@ def encode_jpeg(image: Image | np.ndarray, quality: int = 80) -> bytes:
     return buffer.tobytes()
 
 
+class Picture(Protocol):
+    """What a hub holds for viewers: a camera's frame in process (``LiveFrame``), or the
+    JPEGs a camera process sent (``SentFrame``)."""
+
+    @property
+    def seq(self) -> int: ...
+
+    def jpeg(self) -> bytes: ...
+
+    def histogram_jpeg(self) -> bytes: ...
+
+
+@dataclass(frozen=True, slots=True)
+class SentFrame:
+    """A frame a camera process encoded for this process's viewers."""
+
+    seq: int
+    picture: bytes | None
+    histogram: bytes | None
+
+    def jpeg(self) -> bytes:
+        return self.picture or b""
+
+    def histogram_jpeg(self) -> bytes:
+        return self.histogram or b""
+
+
+Kind = Literal["picture", "histogram"]
+
+
 class FrameHub:
-    """Holds the newest LiveFrame; async viewers wait for one newer than what they have."""
+    """Holds the newest picture; async viewers wait for one newer than what they have.
+
+    Viewers register with ``watch(kind)``; ``on_watch`` hears every change of the
+    counts (a camera process sends only what is watched).
+    """
 
     def __init__(self) -> None:
         self._lock = threading.Lock()
-        self._latest: LiveFrame | None = None
+        self._latest: Picture | None = None
         self._waiters: set[tuple[asyncio.AbstractEventLoop, asyncio.Event]] = set()
-        self.viewers = 0
+        self.watching: dict[Kind, int] = {"picture": 0, "histogram": 0}
+        self.on_watch: Callable[[dict[Kind, int]], None] | None = None
+        self.on_publish: Callable[[Picture], None] | None = None
         self.closed = False
 
     @property
-    def latest(self) -> LiveFrame | None:
+    def viewers(self) -> int:
+        return sum(self.watching.values())
+
+    @contextlib.contextmanager
+    def watch(self, kind: Kind) -> Iterator[None]:
+        self._count(kind, 1)
+        try:
+            yield
+        finally:
+            self._count(kind, -1)
+
+    def _count(self, kind: Kind, step: int) -> None:
+        with self._lock:
+            self.watching[kind] += step
+            counts = dict(self.watching)
+        if self.on_watch is not None:
+            self.on_watch(counts)
+
+    @property
+    def latest(self) -> Picture | None:
         return self._latest
 
-    def publish(self, item: LiveFrame) -> None:
+    def publish(self, item: Picture) -> None:
+        if self.on_publish is not None:
+            self.on_publish(item)
         with self._lock:
             self._latest = item
             waiters = list(self._waiters)
@@ -126,7 +184,7 @@ class FrameHub:
             with contextlib.suppress(RuntimeError):
                 loop.call_soon_threadsafe(event.set)
 
-    async def next(self, after_seq: int, timeout: float) -> LiveFrame | None:
+    async def next(self, after_seq: int, timeout: float) -> Picture | None:
         """A frame newer than ``after_seq``, or None after ``timeout`` seconds."""
         event = asyncio.Event()
         key = (asyncio.get_running_loop(), event)

@@ -1,71 +1,63 @@
-"""Every camera's worker, started and stopped together with the server."""
+"""Every camera, spread over the camera processes, started and stopped with the server."""
 
 from __future__ import annotations
 
 import threading
-import time
+from collections.abc import Iterable
 from typing import Any
 
-import cv2
-
 from app.core.config import Settings
-from app.storage.db import Database
-from app.storage.files import SnapshotStore
 from app.workers.bus import EventBus
-from app.workers.camera import CameraWorker
+from app.workers.camera_host import CameraProcess, RemoteCamera, default_processes
 
 
 class CameraManager:
-    def __init__(
-        self, settings: Settings, db: Database, snapshots: SnapshotStore, bus: EventBus
-    ) -> None:
-        self.settings = settings
-        self.db = db
-        self.snapshots = snapshots
-        self.bus = bus
-        self._workers: dict[int, CameraWorker] = {}
+    def __init__(self, settings: Settings, bus: EventBus) -> None:
+        count = settings.camera_processes or default_processes()
+        self._processes = [CameraProcess(i, settings, bus) for i in range(count)]
+        self._cameras: dict[int, RemoteCamera] = {}
         self._lock = threading.Lock()
 
-    def start_all(self) -> None:
-        if self.settings.opencv_threads:
-            cv2.setNumThreads(self.settings.opencv_threads)
-        for camera in self.db.cameras():
+    def start_all(self, cameras: Iterable[dict[str, Any]]) -> None:
+        for process in self._processes:
+            process.start()
+        for camera in cameras:
             self.start(camera)
 
-    def start(self, camera: dict[str, Any]) -> CameraWorker:
-        worker = CameraWorker(camera, self.settings, self.db, self.snapshots, self.bus)
+    def start(self, camera: dict[str, Any]) -> RemoteCamera:
+        """Run a camera (again, with its new row, if it runs already) in the least busy process."""
+        self.remove(camera["id"])
+        process = min(self._processes, key=lambda p: len(p.cameras))
+        remote = RemoteCamera(camera, process)
         with self._lock:
-            old = self._workers.get(camera["id"])
-            self._workers[camera["id"]] = worker
-        if old is not None:
-            old.request_stop()
-        worker.start()
-        return worker
+            self._cameras[camera["id"]] = remote
+        process.add(remote)
+        return remote
 
-    def restart(self, camera: dict[str, Any]) -> CameraWorker:
+    def restart(self, camera: dict[str, Any]) -> RemoteCamera:
         return self.start(camera)
 
-    def get(self, camera_id: int) -> CameraWorker | None:
+    def get(self, camera_id: int) -> RemoteCamera | None:
         with self._lock:
-            return self._workers.get(camera_id)
+            return self._cameras.get(camera_id)
 
-    def all(self) -> list[CameraWorker]:
+    def all(self) -> list[RemoteCamera]:
         with self._lock:
-            return list(self._workers.values())
+            return list(self._cameras.values())
 
     def remove(self, camera_id: int) -> None:
         with self._lock:
-            worker = self._workers.pop(camera_id, None)
-        if worker is not None:
-            worker.request_stop()
+            camera = self._cameras.pop(camera_id, None)
+        if camera is not None:
+            camera.process.remove(camera_id)
 
-    def stop_all(self, timeout: float = 2.0) -> None:
-        """Ask every worker to end, then wait for them together (at most ``timeout``)."""
-        workers = self.all()
-        for worker in workers:
-            worker.request_stop()
-        deadline = time.monotonic() + timeout
-        for worker in workers:
-            worker.join(max(0.0, deadline - time.monotonic()))
+    def storage_error(self) -> str | None:
+        """Why a camera's snapshots are not being saved, if one's are not."""
+        return next((c.storage_error for c in self.all() if c.storage_error), None)
+
+    def stop_all(self, timeout: float) -> bool:
+        """Stop every camera process (each gets ``timeout``); True when all stopped cleanly."""
+        stopped = [process.stop(timeout) for process in self._processes]
         with self._lock:
-            self._workers.clear()
+            self._cameras.clear()
+        return all(stopped)

@@ -174,12 +174,15 @@ def _live_camera(server: Running) -> Iterator[Callable[[], int]]:
         cam_id = added.json()["id"]
         httpx.post(f"{server.base}/api/cameras/{cam_id}/activate").raise_for_status()
 
-        def processed() -> int:
-            view = httpx.get(f"{server.base}/api/cameras/{cam_id}").json()
-            assert view["state"] == "live", view
-            return int(view["processed"])
+        def view() -> dict[str, Any]:
+            return dict(httpx.get(f"{server.base}/api/cameras/{cam_id}").json())
 
-        wait_for(processed, 15, "the camera to process frames")
+        def processed() -> int:
+            now = view()
+            assert now["state"] == "live", now
+            return int(now["processed"])
+
+        wait_for(lambda: view()["processed"] > 0, 15, "the camera to process frames")
         yield processed
     finally:
         camera.stop()

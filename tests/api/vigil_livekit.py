@@ -94,6 +94,7 @@ def live_settings(data_dir: Path, **overrides: Any) -> Settings:
         "status_interval_s": 0.25,
         "open_timeout_ms": 2000,
         "read_timeout_ms": 1500,
+        "camera_processes": 1,  # Each costs a start-up; tests/api/test_api_processes.py uses two.
     }
     values.update(overrides)
     return Settings(**values)

@@ -128,7 +128,6 @@ def change_camera(request: Request, camera_id: int, body: CameraPatch) -> dict[s
     if worker is None or ("source" in changes and changes["source"] != before["source"]):
         svc.cameras.restart(camera)
     else:
-        worker.name = camera["name"]
         worker.update(**changes)
     return svc.camera_view(camera)
 

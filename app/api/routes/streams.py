@@ -9,8 +9,8 @@ from fastapi import APIRouter, HTTPException, Request, Response
 from fastapi.responses import StreamingResponse
 
 from app.api.services import services, worker_or_404
-from app.workers.camera import CameraWorker
-from app.workers.hub import LiveFrame
+from app.workers.camera_host import Camera
+from app.workers.hub import Kind, Picture
 
 router = APIRouter(prefix="/api/cameras", tags=["streams"])
 
@@ -26,12 +26,11 @@ def mjpeg_part(data: bytes) -> bytes:
     return head + data + b"\r\n"
 
 
-async def _frames(request: Request, worker: CameraWorker, histogram: bool) -> AsyncIterator[bytes]:
+async def _frames(request: Request, camera: Camera, kind: Kind) -> AsyncIterator[bytes]:
     svc = services(request)
-    hub = worker.hub
-    hub.viewers += 1
+    hub = camera.hub
     seq = 0
-    try:
+    with hub.watch(kind):
         while not svc.closing and not hub.closed:
             item = await hub.next(seq, 1.0)
             if await request.is_disconnected():
@@ -39,11 +38,9 @@ async def _frames(request: Request, worker: CameraWorker, histogram: bool) -> As
             if item is None:
                 continue
             seq = item.seq
-            encode = item.histogram_jpeg if histogram else item.jpeg
+            encode = item.histogram_jpeg if kind == "histogram" else item.jpeg
             data = await asyncio.to_thread(encode)
             yield mjpeg_part(data)
-    finally:
-        hub.viewers -= 1
 
 
 @router.get("/{camera_id}/stream.mjpg")
@@ -51,7 +48,7 @@ async def stream(request: Request, camera_id: int) -> StreamingResponse:
     """Annotated frames (boxes, track ids, trails; the motion mask when show_mask is on)."""
     worker = worker_or_404(request, camera_id)
     return StreamingResponse(
-        _frames(request, worker, False), media_type=MJPEG_TYPE, headers=NO_CACHE
+        _frames(request, worker, "picture"), media_type=MJPEG_TYPE, headers=NO_CACHE
     )
 
 
@@ -60,19 +57,22 @@ async def histogram_stream(request: Request, camera_id: int) -> StreamingRespons
     """The grey-level histogram of each frame, drawn as a picture."""
     worker = worker_or_404(request, camera_id)
     return StreamingResponse(
-        _frames(request, worker, True), media_type=MJPEG_TYPE, headers=NO_CACHE
+        _frames(request, worker, "histogram"), media_type=MJPEG_TYPE, headers=NO_CACHE
     )
 
 
-async def _latest(worker: CameraWorker) -> LiveFrame:
-    item = worker.hub.latest
-    if item is None and worker.state in ("connecting", "live"):
-        item = await worker.hub.next(0, 3.0)
+async def _latest(camera: Camera, kind: Kind) -> Picture:
+    """A fresh frame: a poller counts as a viewer until it has one (a camera process
+    sends pictures only while someone watches)."""
+    with camera.hub.watch(kind):
+        latest = camera.hub.latest
+        item = await camera.hub.next(latest.seq if latest else 0, 3.0)
+    item = item or camera.hub.latest
     if item is None:
         raise HTTPException(
             503,
-            f"no picture yet: camera is {worker.state}"
-            + (f" ({worker.reason})" if worker.reason else ""),
+            f"no picture yet: camera is {camera.state}"
+            + (f" ({camera.reason})" if camera.reason else ""),
         )
     return item
 
@@ -80,13 +80,13 @@ async def _latest(worker: CameraWorker) -> LiveFrame:
 @router.get("/{camera_id}/frame.jpg")
 async def frame(request: Request, camera_id: int) -> Response:
     """The newest annotated frame, for pages that poll (more cameras than connections)."""
-    item = await _latest(worker_or_404(request, camera_id))
+    item = await _latest(worker_or_404(request, camera_id), "picture")
     data = await asyncio.to_thread(item.jpeg)
     return Response(data, media_type="image/jpeg", headers=NO_CACHE)
 
 
 @router.get("/{camera_id}/histogram.jpg")
 async def histogram_frame(request: Request, camera_id: int) -> Response:
-    item = await _latest(worker_or_404(request, camera_id))
+    item = await _latest(worker_or_404(request, camera_id), "histogram")
     data = await asyncio.to_thread(item.histogram_jpeg)
     return Response(data, media_type="image/jpeg", headers=NO_CACHE)

@@ -1,0 +1,360 @@
+"""Cameras in worker processes: the process model of ``vigil serve``.
+
+One process with a thread per camera is bound by the GIL at about 16 activated
+640x480 cameras on two cores, two processes carry 32 (``bench/bench_cameras.py``).
+So the cameras run in ``camera_processes`` processes (default: one per CPU),
+each a set of ``CameraWorker`` threads. The server keeps a ``RemoteCamera`` per
+camera with the face the API uses (``Camera``: hub, status, activate, settings).
+A pipe per process carries commands one way and, the other way, status and
+alarm messages and the frames that someone watches (encoded in the camera
+process, only while watched). Each process opens the same SQLite database (WAL)
+and snapshot folder, so an alarm's rows are committed before its message leaves.
+A camera process that dies is started again with its cameras, which meanwhile
+say why they are down.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import logging
+import multiprocessing
+import os
+import signal
+import threading
+import time
+from multiprocessing.connection import Connection
+from typing import Any, Protocol
+
+import cv2
+
+from app.core.config import Settings
+from app.storage.db import Database
+from app.storage.files import SnapshotStore
+from app.workers.bus import EventBus
+from app.workers.camera import CameraWorker
+from app.workers.hub import FrameHub, Kind, Picture, SentFrame
+
+log = logging.getLogger("vigil.cameras")
+
+RESTART_DELAY_S = 1.0
+"""Wait before starting a camera process that died again (a crash loop stays cheap)."""
+
+
+class Camera(Protocol):
+    """A camera as the API sees it, wherever its worker runs."""
+
+    camera_id: int
+    hub: FrameHub
+
+    @property
+    def state(self) -> str: ...
+
+    @property
+    def reason(self) -> str: ...
+
+    def status(self) -> dict[str, Any]: ...
+
+    def set_active(self, active: bool) -> None: ...
+
+    def update(self, **changes: Any) -> None: ...
+
+
+# --- the camera process --------------------------------------------------------------------
+
+
+class _Link:
+    """The camera process's end of the pipe: sends are whole messages, from any thread."""
+
+    def __init__(self, conn: Connection) -> None:
+        self._conn = conn
+        self._lock = threading.Lock()
+
+    def send(self, item: tuple[Any, ...]) -> None:
+        with self._lock, contextlib.suppress(OSError, ValueError):  # The server is gone.
+            self._conn.send(item)
+
+    def publish(self, message: dict[str, Any]) -> None:
+        """What workers call for status, alarms and motion_end (an ``EventBus`` stand-in)."""
+        self.send(("message", message))
+
+
+class _FrameSender:
+    """Encodes the newest frame of each watched camera and sends it to the server.
+
+    One thread for the process. A frame replaced by a newer one before its turn is
+    skipped, so a slow pipe costs frames, never delay.
+    """
+
+    def __init__(self, link: _Link) -> None:
+        self._link = link
+        self._watching: dict[int, dict[Kind, int]] = {}
+        self._pending: dict[int, Picture] = {}
+        self._wake = threading.Condition()
+        self._stopped = False
+        self._thread = threading.Thread(target=self._run, name="frame-sender", daemon=True)
+        self._thread.start()
+
+    def watch(self, camera_id: int, counts: dict[Kind, int]) -> None:
+        with self._wake:
+            self._watching[camera_id] = counts
+
+    def offer(self, camera_id: int, item: Picture) -> None:
+        with self._wake:
+            if any(self._watching.get(camera_id, {}).values()):
+                self._pending[camera_id] = item
+                self._wake.notify()
+
+    def stop(self) -> None:
+        with self._wake:
+            self._stopped = True
+            self._wake.notify()
+
+    def _run(self) -> None:
+        while True:
+            with self._wake:
+                self._wake.wait_for(lambda: self._pending or self._stopped)
+                if self._stopped:
+                    return
+                pending, self._pending = self._pending, {}
+                watching = {cid: dict(self._watching.get(cid, {})) for cid in pending}
+            for camera_id, item in pending.items():
+                counts = watching[camera_id]
+                try:
+                    picture = item.jpeg() if counts.get("picture") else None
+                    histogram = item.histogram_jpeg() if counts.get("histogram") else None
+                except Exception:  # One bad frame must not stop every camera's pictures.
+                    log.exception("camera %s: cannot encode a frame", camera_id)
+                    continue
+                self._link.send(("frame", camera_id, item.seq, picture, histogram))
+
+
+def run_cameras(conn: Connection, settings: Settings) -> None:
+    """The camera process: run the cameras the server sends until it says exit or is gone."""
+    # Ctrl-C reaches the whole process group; the server decides when cameras stop.
+    signal.signal(signal.SIGINT, signal.SIG_IGN)
+    logging.basicConfig(level=logging.INFO, format="%(levelname)s %(name)s: %(message)s")
+    if settings.opencv_threads:
+        cv2.setNumThreads(settings.opencv_threads)
+    link = _Link(conn)
+    db = Database(settings.db_path)
+    snapshots = SnapshotStore(settings.snapshots_dir)
+    sender = _FrameSender(link)
+    workers: dict[int, CameraWorker] = {}
+
+    def remove(camera_id: int) -> None:
+        worker = workers.pop(camera_id, None)
+        if worker is not None:
+            worker.request_stop()
+
+    try:
+        while True:
+            try:
+                command = conn.recv()
+            except (EOFError, OSError):
+                return  # The server is gone (killed): stop too.
+            op, *args = command
+            if op == "exit":
+                return
+            if op == "start":
+                (row,) = args
+                remove(row["id"])
+                worker = CameraWorker(row, settings, db, snapshots, link)
+                worker.hub.on_publish = lambda item, cid=row["id"]: sender.offer(cid, item)
+                workers[row["id"]] = worker
+                worker.start()
+            elif op == "remove":
+                remove(args[0])
+            elif (worker_or_none := workers.get(args[0])) is not None:
+                if op == "active":
+                    worker_or_none.set_active(args[1])
+                elif op == "update":
+                    worker_or_none.update(**args[1])
+                elif op == "watch":
+                    sender.watch(args[0], args[1])
+    finally:
+        for worker in workers.values():
+            worker.request_stop()
+        deadline = time.monotonic() + settings.read_timeout_ms / 1000 + 1.0
+        stopped = all(w.join(max(0.0, deadline - time.monotonic())) for w in workers.values())
+        sender.stop()
+        if stopped:
+            db.close()
+
+
+# --- the server's side -----------------------------------------------------------------------
+
+
+class RemoteCamera:
+    """A camera whose worker runs in a camera process; its state as last reported."""
+
+    def __init__(self, row: dict[str, Any], process: CameraProcess) -> None:
+        self.camera_id: int = row["id"]
+        self.row = dict(row)
+        self.process = process
+        self.hub = FrameHub()
+        self.hub.on_watch = lambda counts: process.send(("watch", self.camera_id, counts))
+        self.storage_error: str | None = None
+        self._status: dict[str, Any] = {  # Until the camera process reports.
+            "camera_id": self.camera_id,
+            "state": "connecting",
+            "reason": "",
+            "fps": 0.0,
+            "source_fps": None,
+            "frames": 0,
+            "processed": 0,
+            "objects": 0,
+            "motion": 0.0,
+            "threshold": None,
+            "last_alarm": None,
+        }
+
+    @property
+    def state(self) -> str:
+        return str(self._status["state"])
+
+    @property
+    def reason(self) -> str:
+        return str(self._status["reason"])
+
+    def status(self) -> dict[str, Any]:
+        return {
+            **self._status,
+            "active": bool(self.row.get("active")),
+            "viewers": self.hub.viewers,
+            "process": self.process.index,
+        }
+
+    def set_active(self, active: bool) -> None:
+        self.row["active"] = active
+        self.process.send(("active", self.camera_id, active))
+
+    def update(self, **changes: Any) -> None:
+        self.row.update(changes)
+        self.process.send(("update", self.camera_id, changes))
+
+    def reported(self, message: dict[str, Any]) -> dict[str, Any]:
+        """A status message from the camera process: kept, and completed for /ws."""
+        if "storage_error" in message:
+            self.storage_error = message["storage_error"]
+        self._status = {k: v for k, v in message.items() if k not in ("type", "storage_error")}
+        return {**message, **self.status()}
+
+
+class CameraProcess:
+    """One camera process, from the server: starts it, sends commands, hears it, restarts it."""
+
+    def __init__(self, index: int, settings: Settings, bus: EventBus) -> None:
+        self.index = index
+        self.settings = settings
+        self.bus = bus
+        self.cameras: dict[int, RemoteCamera] = {}
+        self._lock = threading.Lock()
+        self._stopping = threading.Event()
+        self._conn: Connection | None = None
+        self._process: multiprocessing.process.BaseProcess | None = None
+        self._receiver: threading.Thread | None = None
+
+    def start(self) -> None:
+        context = multiprocessing.get_context("spawn")  # No fork of a threaded server.
+        ours, theirs = context.Pipe()
+        process = context.Process(
+            target=run_cameras,
+            args=(theirs, self.settings),
+            name=f"vigil-cameras-{self.index}",
+            daemon=True,
+        )
+        process.start()
+        theirs.close()
+        with self._lock:
+            self._conn, self._process = ours, process
+            cameras = list(self.cameras.values())
+        for camera in cameras:  # After a restart: the same cameras, as they were.
+            self.send(("start", camera.row))
+            self.send(("watch", camera.camera_id, dict(camera.hub.watching)))
+        self._receiver = threading.Thread(
+            target=self._receive, args=(ours, process), name=process.name, daemon=True
+        )
+        self._receiver.start()
+
+    def add(self, camera: RemoteCamera) -> None:
+        with self._lock:
+            self.cameras[camera.camera_id] = camera
+        self.send(("start", camera.row))
+
+    def remove(self, camera_id: int) -> None:
+        with self._lock:
+            camera = self.cameras.pop(camera_id, None)
+        if camera is not None:
+            camera.hub.close()
+            self.send(("remove", camera_id))
+
+    def send(self, command: tuple[Any, ...]) -> None:
+        with self._lock:
+            conn = self._conn
+            # A dead process's pipe refuses; its restart sends every camera again.
+            with contextlib.suppress(OSError, ValueError):
+                if conn is not None:
+                    conn.send(command)
+
+    def stop(self, timeout: float) -> bool:
+        """Ask the process to stop its cameras and exit; True when it did in time."""
+        self._stopping.set()
+        self.send(("exit",))
+        for camera in list(self.cameras.values()):
+            camera.hub.close()
+        process = self._process
+        if process is None:
+            return True
+        process.join(timeout)
+        if process.is_alive():
+            log.warning("camera process %s did not stop in %.1f s: killed", self.index, timeout)
+            process.kill()
+            process.join(1.0)
+            return False
+        return True
+
+    def _receive(self, conn: Connection, process: multiprocessing.process.BaseProcess) -> None:
+        while True:
+            try:
+                item = conn.recv()
+            except (EOFError, OSError):
+                break
+            if item[0] == "message":
+                self._forward(item[1])
+            elif item[0] == "frame":
+                _, camera_id, seq, picture, histogram = item
+                camera = self.cameras.get(camera_id)
+                if camera is not None:
+                    camera.hub.publish(SentFrame(seq, picture, histogram))
+        conn.close()
+        process.join(5.0)
+        if self._stopping.is_set():
+            return
+        self._restart(_exit_reason(process.exitcode))
+
+    def _forward(self, message: dict[str, Any]) -> None:
+        camera = self.cameras.get(message.get("camera_id", -1))
+        if camera is None:
+            return  # Removed meanwhile: its last words concern nobody.
+        if message.get("type") == "status":
+            message = camera.reported(message)
+        self.bus.publish(message)
+
+    def _restart(self, reason: str) -> None:
+        log.error("camera process %s %s; starting it again", self.index, reason)
+        for camera in list(self.cameras.values()):
+            down = {**camera.status(), "type": "status", "state": "error"}
+            self.bus.publish(camera.reported({**down, "reason": f"camera process {reason}"}))
+        if not self._stopping.wait(RESTART_DELAY_S):
+            self.start()
+
+
+def _exit_reason(exitcode: int | None) -> str:
+    if exitcode is not None and exitcode < 0:
+        with contextlib.suppress(ValueError):
+            return f"died (signal {-exitcode}, {signal.Signals(-exitcode).name})"
+    return f"exited (status {exitcode})"
+
+
+def default_processes() -> int:
+    return max(1, os.cpu_count() or 1)

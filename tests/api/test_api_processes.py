@@ -1,0 +1,71 @@
+"""Cameras spread over camera processes; one that dies is started again with its cameras."""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from pathlib import Path
+
+import httpx
+import psutil
+
+from tests.api.vigil_livekit import Running, WsClient, wait_for, write_video
+
+
+def _add_active_camera(base: str, video: Path, name: str) -> int:
+    added = httpx.post(f"{base}/api/cameras", json={"name": name, "source": f"file://{video}"})
+    added.raise_for_status()
+    cam = int(added.json()["id"])
+    httpx.post(f"{base}/api/cameras/{cam}/activate").raise_for_status()
+    return cam
+
+
+def _camera(base: str, cam: int) -> dict:
+    return dict(httpx.get(f"{base}/api/cameras/{cam}").json())
+
+
+def _camera_processes() -> list[psutil.Process]:
+    """This test process's children that run cameras (uvicorn runs in a thread here)."""
+    return [
+        child
+        for child in psutil.Process().children()
+        if "spawn_main" in " ".join(child.cmdline()) and child.is_running()
+    ]
+
+
+def test_cameras_are_spread_over_the_processes_and_each_raises_alarms(
+    serve: Callable[..., Running], motion_video: Path, tmp_path: Path
+) -> None:
+    server = serve(camera_processes=2)
+    other = write_video(tmp_path / "other.avi")
+    with WsClient(server.ws) as ws:
+        cams = [
+            _add_active_camera(server.base, motion_video, "porch"),
+            _add_active_camera(server.base, other, "gate"),
+        ]
+        for cam in cams:
+            ws.wait("alarm", 30, camera_id=cam)
+    assert {_camera(server.base, cam)["process"] for cam in cams} == {0, 1}
+    assert len(_camera_processes()) == 2
+
+
+def test_a_camera_process_that_dies_is_restarted_with_its_cameras(
+    serve: Callable[..., Running], motion_video: Path
+) -> None:
+    server = serve(camera_processes=1)
+    with WsClient(server.ws) as ws:
+        cam = _add_active_camera(server.base, motion_video, "porch")
+        ws.wait("alarm", 30, camera_id=cam)
+        (host,) = _camera_processes()
+        host.kill()  # As a decoder crash would end it.
+        down = ws.wait("status", 10, camera_id=cam, state="error")[0]
+        assert "camera process died (signal 9, SIGKILL)" in down["reason"]
+        alarms_before = len(ws.of_type("alarm", camera_id=cam))
+        wait_for(
+            lambda: len(ws.of_type("alarm", camera_id=cam)) > alarms_before,
+            30,
+            "alarms from the restarted camera process",
+        )
+    view = _camera(server.base, cam)
+    assert view["state"] == "live" and view["active"]
+    (again,) = _camera_processes()
+    assert again.pid != host.pid

@@ -1,5 +1,6 @@
 from __future__ import annotations
 
+import shutil
 from collections.abc import Callable, Iterator
 from contextlib import ExitStack
 from pathlib import Path
@@ -25,3 +26,35 @@ def serve(tmp_path: Path) -> Iterator[Callable[..., Running]]:
             return stack.enter_context(running_server(settings))
 
         yield start
+
+
+CHROMIUM = shutil.which("chromium") or shutil.which("chromium-browser")
+CHROMIUM_FLAGS = [  # Quiet on a closed network (NOTES.md).
+    "--no-sandbox",
+    "--disable-gpu",
+    "--disable-quic",
+    "--no-first-run",
+    "--disable-background-networking",
+    "--disable-component-update",
+    "--disable-sync",
+]
+
+
+@pytest.fixture
+def page() -> Iterator[Any]:
+    """A Chromium page that records every Content-Security-Policy violation in window.__csp."""
+    sync_api = pytest.importorskip("playwright.sync_api")
+    if CHROMIUM is None:
+        pytest.skip("Chromium is not installed")
+    with sync_api.sync_playwright() as playwright:
+        browser = playwright.chromium.launch(executable_path=CHROMIUM, args=CHROMIUM_FLAGS)
+        try:
+            context = browser.new_context(viewport={"width": 1400, "height": 1000})
+            context.add_init_script(
+                "window.__csp = [];"
+                "document.addEventListener('securitypolicyviolation', e =>"
+                " window.__csp.push(e.violatedDirective + ' ' + e.blockedURI));"
+            )
+            yield context.new_page()
+        finally:
+            browser.close()

@@ -23,8 +23,7 @@ import pytest
 from websockets.exceptions import InvalidStatus
 from websockets.sync.client import connect
 
-from tests.api.test_api_browser import CHROMIUM, FLAGS
-from tests.api.vigil_livekit import Running, free_socket, read_mjpeg_frames, wait_for
+from tests.api.vigil_livekit import Running, read_mjpeg_frames, serve_process
 
 ROOT = Path(__file__).resolve().parents[2]
 PASSWORD = "correct horse"
@@ -349,59 +348,21 @@ def test_hash_password_command_and_a_serve_process_with_the_hash(tmp_path: Path)
         assert "VIGIL_PASSWORD" in refused.stderr
         assert bad not in refused.stderr and password_hash not in refused.stderr
 
-    sock = free_socket()
-    port = sock.getsockname()[1]
-    sock.close()
-    process = subprocess.Popen(
-        [sys.executable, "-m", "app", "serve", "--port", str(port), "--data", str(tmp_path)],
-        cwd=ROOT, env={**env, "VIGIL_PASSWORD_HASH": password_hash, "VIGIL_DEMO_CAMERA": "0"},
-        stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True,
-    )  # fmt: skip
-    base = f"http://127.0.0.1:{port}"
-    try:
-
-        def healthy() -> bool:
-            assert process.poll() is None, "vigil serve exited"
-            try:
-                return httpx.get(f"{base}/api/health", timeout=1).status_code == 200
-            except httpx.HTTPError:
-                return False
-
-        wait_for(healthy, 30, "vigil serve to answer", 0.2)
+    serving = serve_process(tmp_path, VIGIL_PASSWORD_HASH=password_hash, VIGIL_DEMO_CAMERA="0")
+    with serving as (process, base):
         assert httpx.get(f"{base}/api/cameras", auth=("", PASSWORD)).status_code == 200
         assert httpx.post(f"{base}/api/login", json={"password": "nope"}).status_code == 401
         assert httpx.post(f"{base}/api/login", json={"password": PASSWORD}).status_code == 200
-    finally:
         process.terminate()
         output, _ = process.communicate(timeout=15)
     assert PASSWORD not in output and password_hash not in output
 
 
-@pytest.fixture
-def browser_page() -> Iterator[Any]:
-    """A Chromium page that records every Content-Security-Policy violation in window.__csp."""
-    sync_api = pytest.importorskip("playwright.sync_api")
-    if CHROMIUM is None:
-        pytest.skip("Chromium is not installed")
-    with sync_api.sync_playwright() as playwright:
-        browser = playwright.chromium.launch(executable_path=CHROMIUM, args=FLAGS)
-        try:
-            context = browser.new_context(viewport={"width": 1400, "height": 1000})
-            context.add_init_script(
-                "window.__csp = [];"
-                "document.addEventListener('securitypolicyviolation', e =>"
-                " window.__csp.push(e.violatedDirective + ' ' + e.blockedURI));"
-            )
-            yield context.new_page()
-        finally:
-            browser.close()
-
-
 @pytest.mark.browser
 def test_login_and_dashboard_in_chromium_under_the_policy(
-    serve: Callable[..., Running], browser_page: Any
+    serve: Callable[..., Running], page: Any
 ) -> None:
-    page = browser_page
+    page = page
     server = serve(password=PASSWORD, demo_camera=True)
     errors: list[str] = []
     page.on("pageerror", lambda error: errors.append(str(error)))

@@ -2,14 +2,10 @@
 
 from __future__ import annotations
 
-import os
 import shutil
 import signal
-import subprocess
-import sys
 import time
-from collections.abc import Callable, Iterator
-from contextlib import contextmanager
+from collections.abc import Callable
 from pathlib import Path
 
 import cv2
@@ -19,7 +15,7 @@ import psutil
 import pytest
 
 from app.storage import Database, SnapshotStore
-from tests.api.vigil_livekit import Running, WsClient, free_socket, wait_for, write_video
+from tests.api.vigil_livekit import Running, WsClient, serve_process, wait_for, write_video
 
 ROOT = Path(__file__).resolve().parents[2]
 
@@ -29,51 +25,6 @@ def _decodes(data: bytes) -> bool:
     if data[:2] != b"\xff\xd8" or data[-2:] != b"\xff\xd9":
         return False
     return cv2.imdecode(np.frombuffer(data, np.uint8), cv2.IMREAD_COLOR) is not None
-
-
-@contextmanager
-def _vigil_serve(data_dir: Path) -> Iterator[tuple[subprocess.Popen[str], str]]:
-    """``vigil serve`` as a process, answering on a free port; killed at the end if still up."""
-    sock = free_socket()
-    port = sock.getsockname()[1]
-    sock.close()
-    env = {
-        **os.environ,
-        "PYTHONPATH": str(ROOT),
-        "VIGIL_DEMO_CAMERA": "false",
-        "VIGIL_QUIET_S": "0.3",
-    }
-    process = subprocess.Popen(
-        [sys.executable, "-m", "app", "serve", "--port", str(port), "--data", str(data_dir)],
-        cwd=ROOT,
-        env=env,
-        stdout=subprocess.PIPE,
-        stderr=subprocess.STDOUT,
-        text=True,
-    )
-    base = f"http://127.0.0.1:{port}"
-    try:
-
-        def healthy() -> bool:
-            if process.poll() is not None:
-                raise AssertionError(f"vigil serve exited: {process.stdout.read()}")  # type: ignore[union-attr]
-            try:
-                return httpx.get(f"{base}/api/health", timeout=1).status_code == 200
-            except httpx.HTTPError:
-                return False
-
-        wait_for(healthy, 30, "vigil serve to answer", 0.2)
-        yield process, base
-    except BaseException:
-        if process.poll() is None:
-            process.kill()
-        process.wait(10)
-        print(process.stdout.read())  # type: ignore[union-attr]  # The server's side of it.
-        raise
-    finally:
-        if process.poll() is None:
-            process.kill()
-        process.wait(10)
 
 
 def _add_camera(base: str, video: Path) -> int:
@@ -87,7 +38,10 @@ def test_kill_9_mid_alarm_loses_no_event_and_the_restart_closes_the_open_one(
 ) -> None:
     video = write_video(tmp_path / "loop.avi")
     data_dir = tmp_path / "data"
-    with _vigil_serve(data_dir) as (process, base):
+    with serve_process(data_dir, VIGIL_DEMO_CAMERA="false", VIGIL_QUIET_S="0.3") as (
+        process,
+        base,
+    ):
         cam = _add_camera(base, video)
         with WsClient(base.replace("http", "ws") + "/ws") as ws:
             httpx.post(f"{base}/api/cameras/{cam}/activate").raise_for_status()
@@ -121,7 +75,10 @@ def test_kill_9_mid_alarm_loses_no_event_and_the_restart_closes_the_open_one(
     finally:
         db.close()
 
-    with _vigil_serve(data_dir) as (process, base):
+    with serve_process(data_dir, VIGIL_DEMO_CAMERA="false", VIGIL_QUIET_S="0.3") as (
+        process,
+        base,
+    ):
         listed = {e["id"]: e for e in httpx.get(f"{base}/api/events?limit=5000").json()}
         assert heard_events <= set(listed)
         for event_id in heard_events:

@@ -12,36 +12,13 @@ from pathlib import Path
 
 import httpx
 
-from tests.api.vigil_livekit import free_socket, read_mjpeg_frames, wait_for
+from tests.api.vigil_livekit import read_mjpeg_frames, serve_process
 
 ROOT = Path(__file__).resolve().parents[2]
 
 
 def test_serve_process_demo_and_prompt_exit(tmp_path: Path) -> None:
-    sock = free_socket()
-    port = sock.getsockname()[1]
-    sock.close()
-    env = {**os.environ, "PYTHONPATH": str(ROOT)}
-    process = subprocess.Popen(
-        [sys.executable, "-m", "app", "serve", "--port", str(port), "--data", str(tmp_path / "d")],
-        cwd=ROOT,
-        env=env,
-        stdout=subprocess.PIPE,
-        stderr=subprocess.STDOUT,
-        text=True,
-    )
-    base = f"http://127.0.0.1:{port}"
-    try:
-
-        def healthy() -> bool:
-            if process.poll() is not None:
-                raise AssertionError(f"vigil serve exited: {process.stdout.read()}")  # type: ignore[union-attr]
-            try:
-                return httpx.get(f"{base}/api/health", timeout=1).status_code == 200
-            except httpx.HTTPError:
-                return False
-
-        wait_for(healthy, 30, "vigil serve to answer", 0.2)
+    with serve_process(tmp_path / "d") as (process, base):
         (camera,) = httpx.get(f"{base}/api/cameras").json()
         assert camera["source"] == "demo"
         with httpx.stream("GET", f"{base}/api/cameras/{camera['id']}/stream.mjpg", timeout=10) as r:
@@ -66,10 +43,6 @@ def test_serve_process_demo_and_prompt_exit(tmp_path: Path) -> None:
         took = time.monotonic() - started
         assert took < 2.5, f"vigil serve took {took:.1f} s to exit with a stream open"
         viewer.join(5)
-    finally:
-        if process.poll() is None:
-            process.kill()
-            process.wait(5)
 
 
 def test_serve_off_loopback_refuses_to_start_without_a_password(tmp_path: Path) -> None:

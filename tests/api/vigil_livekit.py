@@ -7,7 +7,10 @@ from __future__ import annotations
 
 import asyncio
 import json
+import os
 import socket
+import subprocess
+import sys
 import threading
 import time
 from collections.abc import Callable, Iterator
@@ -18,6 +21,7 @@ from pathlib import Path
 from typing import Any
 
 import cv2
+import httpx
 import numpy as np
 import uvicorn
 import websockets
@@ -82,6 +86,46 @@ def wait_for(
         if time.monotonic() > deadline:
             raise AssertionError(f"timed out after {timeout} s waiting for {what}")
         time.sleep(interval)
+
+
+ROOT = Path(__file__).resolve().parents[2]
+
+
+@contextmanager
+def serve_process(data_dir: Path, **env: str) -> Iterator[tuple[subprocess.Popen[str], str]]:
+    """``vigil serve`` as its own process on a free port, answering; ``env`` adds variables.
+
+    Yields the process (stdout and stderr together, as text) and its base URL; killed at
+    the end if still running.
+    """
+    sock = free_socket()
+    port = sock.getsockname()[1]
+    sock.close()
+    process = subprocess.Popen(
+        [sys.executable, "-m", "app", "serve", "--port", str(port), "--data", str(data_dir)],
+        cwd=ROOT,
+        env={**os.environ, "PYTHONPATH": str(ROOT), **env},
+        stdout=subprocess.PIPE,
+        stderr=subprocess.STDOUT,
+        text=True,
+    )
+    base = f"http://127.0.0.1:{port}"
+
+    def healthy() -> bool:
+        if process.poll() is not None:
+            raise AssertionError(f"vigil serve exited: {process.stdout.read()}")  # type: ignore[union-attr]
+        try:
+            return httpx.get(f"{base}/api/health", timeout=1).status_code == 200
+        except httpx.HTTPError:
+            return False
+
+    try:
+        wait_for(healthy, 30, "vigil serve to answer", 0.2)
+        yield process, base
+    finally:
+        if process.poll() is None:
+            process.kill()
+        process.wait(10)
 
 
 def live_settings(data_dir: Path, **overrides: Any) -> Settings:

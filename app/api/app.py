@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import asyncio
 import contextlib
+import json
 import signal
 import threading
 from collections.abc import AsyncIterator, Callable
@@ -12,9 +13,8 @@ from pathlib import Path
 from typing import Any
 
 from fastapi import FastAPI
-from fastapi.responses import JSONResponse
 from fastapi.staticfiles import StaticFiles
-from starlette.types import ASGIApp, Receive, Scope, Send
+from starlette.types import ASGIApp, Message, Receive, Scope, Send
 
 import app as vigil_package
 from app.api.routes import (
@@ -66,7 +66,7 @@ def create_app(settings: Settings | None = None) -> FastAPI:
         application.mount("/static", StaticFiles(directory=STATIC_DIR), name="static")
     # The last added runs first: headers on every answer, then the cross-site check,
     # then the login check, so a stranger gets 401 rather than 413 for a big upload.
-    application.add_middleware(UploadLimit, limit=settings.max_upload_mb * 1024 * 1024)
+    application.add_middleware(BodyLimit, upload_limit=settings.max_upload_mb * 1024 * 1024)
     if access is not None:
         application.add_middleware(AccessControl, access=access)
     application.add_middleware(CrossOriginGuard)
@@ -75,32 +75,80 @@ def create_app(settings: Settings | None = None) -> FastAPI:
     return application
 
 
-class UploadLimit:
-    """Refuse an upload whose Content-Length is over the limit before a byte of it is read."""
+class BodyTooLargeError(Exception):
+    """A request body went past its limit while arriving."""
+
+
+class BodyLimit:
+    """Refuse request bodies over their limit, so nothing past it is read or spooled to disk.
+
+    Uploads (``POST /api/analyses``) may be ``upload_limit`` bytes, any other body
+    (JSON) ``other_limit``. A declared Content-Length over the limit is refused before a
+    byte is read; a body without one (chunked) is counted as it arrives and cut off at
+    the limit, the app's answer to the aborted read replaced by the 413.
+    """
 
     SLACK = 1 << 20
-    """Room for the multipart headers and the form's other fields."""
+    """Room for an upload's multipart headers and the form's other fields."""
 
-    def __init__(self, app: ASGIApp, limit: int) -> None:
+    def __init__(self, app: ASGIApp, upload_limit: int, other_limit: int = 1 << 20) -> None:
         self.app = app
-        self.limit = limit
+        self.upload_limit = upload_limit
+        self.other_limit = other_limit
 
     async def __call__(self, scope: Scope, receive: Receive, send: Send) -> None:
-        if (
-            scope["type"] == "http"
-            and scope["method"] == "POST"
-            and (scope["path"].rstrip("/") == "/api/analyses")
-        ):
-            length = dict(scope.get("headers", [])).get(b"content-length", b"")
-            if length.isdigit() and int(length) > self.limit + self.SLACK:
-                refusal = JSONResponse(
-                    {"detail": f"upload larger than {self.limit // (1024 * 1024)} MB"},
-                    status_code=413,
-                    headers={"Connection": "close"},
-                )
-                await refusal(scope, receive, send)
-                return
-        await self.app(scope, receive, send)
+        if scope["type"] != "http" or scope["method"] in ("GET", "HEAD", "OPTIONS"):
+            await self.app(scope, receive, send)
+            return
+        if scope["path"].rstrip("/") == "/api/analyses":
+            limit = self.upload_limit + self.SLACK
+            refusal = _json_refusal(f"upload larger than {self.upload_limit // (1 << 20)} MB")
+        else:
+            limit = self.other_limit
+            refusal = _json_refusal(f"request body larger than {self.other_limit // 1024} KB")
+        length = dict(scope.get("headers", [])).get(b"content-length", b"")
+        if length.isdigit() and int(length) > limit:
+            await send(refusal[0])
+            await send(refusal[1])
+            return
+        received = 0
+        refused = False
+
+        async def counting_receive() -> Message:
+            nonlocal received, refused
+            message = await receive()
+            if message["type"] == "http.request":
+                received += len(message.get("body", b""))
+                if received > limit:
+                    refused = True
+                    raise BodyTooLargeError
+            return message
+
+        async def replacing_send(message: Message) -> None:
+            if not refused:
+                await send(message)
+            elif message["type"] == "http.response.start":
+                await send(refusal[0])
+            elif message["type"] == "http.response.body" and not message.get("more_body"):
+                await send(refusal[1])
+
+        try:
+            await self.app(scope, counting_receive, replacing_send)
+        except BodyTooLargeError:
+            await send(refusal[0])
+            await send(refusal[1])
+
+
+def _json_refusal(detail: str) -> tuple[Message, Message]:
+    """The two ASGI messages of a 413 that closes the connection (the rest is not read)."""
+    body = json.dumps({"detail": detail}).encode()
+    headers = [
+        (b"content-type", b"application/json"),
+        (b"content-length", str(len(body)).encode()),
+        (b"connection", b"close"),
+    ]
+    start: Message = {"type": "http.response.start", "status": 413, "headers": headers}
+    return start, {"type": "http.response.body", "body": body}
 
 
 def _end_streams_on_signal(services: Services) -> Callable[[], None]:

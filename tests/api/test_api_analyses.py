@@ -106,3 +106,54 @@ def test_oversized_upload_refused_before_reading(serve: Callable[..., Running]) 
         )
         reply = conn.recv(65536)  # Answered without the other 50 MB being sent.
     assert reply.startswith(b"HTTP/1.1 413") and b"1 MB" in reply
+
+
+def test_chunked_upload_past_the_limit_is_cut_off_unspooled(
+    serve: Callable[..., Running], tmp_path: Path
+) -> None:
+    """No Content-Length to refuse by: the body is counted as it arrives and cut at 1 MB."""
+    import socket
+    from urllib.parse import urlparse
+
+    server = serve(tmp_path / "data", max_upload_mb=1)
+    url = urlparse(server.base)
+    head = (
+        b'--b\r\nContent-Disposition: form-data; name="file"; filename="big.avi"\r\n'
+        b"Content-Type: video/x-msvideo\r\n\r\n"
+    )
+    chunk = b"x" * 65536
+    with socket.create_connection((url.hostname, url.port), timeout=10) as conn:
+        conn.sendall(
+            b"POST /api/analyses HTTP/1.1\r\nHost: x\r\nTransfer-Encoding: chunked\r\n"
+            b"Content-Type: multipart/form-data; boundary=b\r\n\r\n"
+            + f"{len(head):x}\r\n".encode()
+            + head
+            + b"\r\n"
+        )
+        sent = 0
+        try:
+            while sent < 800:  # 50 MB offered; the server stops reading at about 2.
+                conn.sendall(f"{len(chunk):x}\r\n".encode() + chunk + b"\r\n")
+                sent += 1
+        except OSError:
+            pass  # The server answered and closed: what we want.
+        reply = conn.recv(65536)
+    assert reply.startswith(b"HTTP/1.1 413") and b"1 MB" in reply
+    assert sent < 800, "the server read the whole body before refusing it"
+    analyses = tmp_path / "data" / "analyses"
+    assert not any(analyses.rglob("input*")), "nothing of the refused upload is kept"
+    assert httpx.get(f"{server.base}/api/health").json()["status"] == "ok"
+
+
+def test_json_bodies_are_capped_too(serve: Callable[..., Running]) -> None:
+    server = serve()
+    huge = b'{"name": "' + b"x" * (2 << 20) + b'"}'
+    declared = httpx.post(f"{server.base}/api/cameras", content=huge)
+    assert declared.status_code == 413 and "KB" in declared.json()["detail"]
+    streamed = httpx.post(
+        f"{server.base}/api/cameras",
+        content=iter([huge[i : i + 65536] for i in range(0, len(huge), 65536)]),
+        headers={"Content-Type": "application/json"},
+    )
+    assert streamed.status_code == 413
+    assert httpx.get(f"{server.base}/api/cameras").json() == []

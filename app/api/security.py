@@ -14,6 +14,7 @@ from __future__ import annotations
 import asyncio
 import base64
 import binascii
+import contextlib
 import hashlib
 import hmac
 import math
@@ -239,6 +240,10 @@ def _header(scope: Scope, name: bytes) -> str | None:
     return None
 
 
+class SessionEndedError(Exception):
+    """The session of an open stream or socket ended (log out, expiry)."""
+
+
 async def _close_websocket(send: Send) -> None:
     """Refuse a WebSocket before accepting it: the client gets HTTP 403 (policy violation)."""
     await send({"type": "websocket.close", "code": 1008})
@@ -268,11 +273,33 @@ class AccessControl:
             return
         refusal = await self._refusal(scope)
         if refusal is None:
-            await self.app(scope, receive, send)
+            token = HTTPConnection(scope).cookies.get(SESSION_COOKIE)
+            if token and self.access.sessions.touch(token):
+                send = self._ending_with_session(token, send)
+            with contextlib.suppress(SessionEndedError):
+                await self.app(scope, receive, send)
         elif scope["type"] == "websocket":
             await _close_websocket(send)
         else:
             await refusal(scope, receive, send)
+
+    def _ending_with_session(self, token: str, send: Send) -> Send:
+        """A stream or a socket lasts as long as its session: logging out ends it."""
+        sessions = self.access.sessions
+
+        async def checked_send(message: Message) -> None:
+            ongoing = message["type"] == "websocket.send" or (
+                message["type"] == "http.response.body" and message.get("more_body")
+            )
+            if ongoing and not sessions.touch(token):
+                if message["type"] == "websocket.send":
+                    await send({"type": "websocket.close", "code": 1008})
+                else:
+                    await send({"type": "http.response.body", "body": b"", "more_body": False})
+                raise SessionEndedError
+            await send(message)
+
+        return checked_send
 
     async def _refusal(self, scope: Scope) -> Response | None:
         connection = HTTPConnection(scope)

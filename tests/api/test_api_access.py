@@ -12,6 +12,7 @@ import os
 import re
 import subprocess
 import sys
+import threading
 import time
 from collections.abc import Callable, Iterator
 from contextlib import contextmanager
@@ -20,7 +21,7 @@ from typing import Any
 
 import httpx
 import pytest
-from websockets.exceptions import InvalidStatus
+from websockets.exceptions import ConnectionClosed, InvalidStatus
 from websockets.sync.client import connect
 
 from tests.api.vigil_livekit import Running, read_mjpeg_frames, serve_process
@@ -135,6 +136,36 @@ def test_login_sets_a_strict_session_cookie_and_logout_ends_it(
     # Other sessions live on.
     alive = {"vigil_session": right.cookies["vigil_session"]}
     assert httpx.get(f"{server.base}/api/cameras", cookies=alive).status_code == 200
+
+
+def test_logging_out_ends_the_streams_and_sockets_of_that_session(
+    serve: Callable[..., Running],
+) -> None:
+    server = serve(password=PASSWORD, demo_camera=True)
+    with logged_in(server) as client:
+        camera_id = client.get("/api/cameras").json()[0]["id"]
+        ended = threading.Event()
+
+        def watch() -> None:
+            with client.stream("GET", f"/api/cameras/{camera_id}/stream.mjpg") as stream:
+                chunks = stream.iter_bytes()
+                read_mjpeg_frames(chunks, 1)
+                for _ in chunks:
+                    pass
+            ended.set()
+
+        viewer = threading.Thread(target=watch, daemon=True)
+        viewer.start()
+        with connect(server.ws, open_timeout=10, additional_headers=cookie_header(client)) as ws:
+            ws.recv(timeout=10)  # A status message: the socket is live.
+            time.sleep(0.5)
+            assert not ended.is_set()
+            assert client.post("/api/logout").status_code == 204
+            with pytest.raises(ConnectionClosed) as closed:
+                while True:
+                    ws.recv(timeout=10)
+            assert closed.value.rcvd is not None and closed.value.rcvd.code == 1008
+        assert ended.wait(10), "the MJPEG stream outlived the session"
 
 
 def test_login_form_redirects_back_but_never_off_site(serve: Callable[..., Running]) -> None:

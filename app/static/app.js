@@ -192,6 +192,7 @@ function makeCard(id) {
       toast(escapeHtml(error.message), "error");
     }
   });
+  setUpZones(card, id);
   $(".delete", card).addEventListener("click", async () => {
     if (!confirm(`Remove camera “${cameraName(id)}”? Its snapshots stay.`)) return;
     try {
@@ -202,6 +203,96 @@ function makeCard(id) {
     }
   });
   return card;
+}
+
+/* ---------- Ignore zones ---------- */
+// Polygons of [x, y] fractions of the frame (the API's `mask`), drawn in an SVG laid
+// exactly over the picture as `object-fit: contain` shows it.
+
+const SVG = "http://www.w3.org/2000/svg";
+
+function setUpZones(card, id) {
+  const picture = $(".picture", card);
+  const img = $(".live", card);
+  const layer = document.createElementNS(SVG, "svg");
+  layer.classList.add("zone-layer");
+  layer.setAttribute("viewBox", "0 0 1 1");
+  layer.setAttribute("preserveAspectRatio", "none");
+  picture.append(layer);
+  const editor = { zones: [], draft: [] };
+  card._zones = editor;
+
+  const place = () => {
+    if (!img.naturalWidth) return;
+    const box = picture.getBoundingClientRect();
+    const scale = Math.min(box.width / img.naturalWidth, box.height / img.naturalHeight);
+    const width = img.naturalWidth * scale;
+    const height = img.naturalHeight * scale;
+    layer.style.left = `${(box.width - width) / 2}px`;
+    layer.style.top = `${(box.height - height) / 2}px`;
+    layer.style.width = `${width}px`;
+    layer.style.height = `${height}px`;
+  };
+  const draw = () => {
+    place();
+    layer.replaceChildren();
+    for (const zone of editor.zones) {
+      const polygon = document.createElementNS(SVG, "polygon");
+      polygon.setAttribute("points", zone.map(([x, y]) => `${x},${y}`).join(" "));
+      layer.append(polygon);
+    }
+    if (editor.draft.length) {
+      const line = document.createElementNS(SVG, "polyline");
+      line.classList.add("draft");
+      line.setAttribute("points", editor.draft.map(([x, y]) => `${x},${y}`).join(" "));
+      layer.append(line);
+      for (const [x, y] of editor.draft) {
+        const dot = document.createElementNS(SVG, "circle");
+        dot.setAttribute("cx", x);
+        dot.setAttribute("cy", y);
+        dot.setAttribute("r", 0.008);
+        layer.append(dot);
+      }
+    }
+  };
+  editor.show = (mask) => {
+    if (card.classList.contains("editing-zones")) return;  // Not while someone draws.
+    editor.zones = (mask || []).map((zone) => zone.map(([x, y]) => [x, y]));
+    draw();
+  };
+  const finishDraft = () => {
+    if (editor.draft.length >= 3) editor.zones.push(editor.draft);
+    editor.draft = [];
+  };
+  const stopEditing = () => {
+    card.classList.remove("editing-zones");
+    $(".zone-tools", card).hidden = true;
+    editor.draft = [];
+    editor.show(state.cameras.get(id)?.mask);
+  };
+  img.addEventListener("load", place);
+  window.addEventListener("resize", draw);
+  layer.addEventListener("click", (event) => {
+    const box = layer.getBoundingClientRect();
+    const round = (value) => Math.round(Math.min(1, Math.max(0, value)) * 1000) / 1000;
+    editor.draft.push([round((event.clientX - box.left) / box.width), round((event.clientY - box.top) / box.height)]);
+    draw();
+  });
+  $(".zones", card).addEventListener("click", () => {
+    card.classList.add("editing-zones");
+    $(".zone-tools", card).hidden = false;
+    draw();
+  });
+  $(".zone-finish", card).addEventListener("click", () => { finishDraft(); draw(); });
+  $(".zone-clear", card).addEventListener("click", () => { editor.zones = []; editor.draft = []; draw(); });
+  $(".zone-cancel", card).addEventListener("click", stopEditing);
+  $(".zone-save", card).addEventListener("click", async () => {
+    finishDraft();
+    const zones = editor.zones;
+    card.classList.remove("editing-zones");
+    await patchCamera(id, { mask: zones.length ? zones : null });
+    stopEditing();
+  });
 }
 
 async function patchCamera(id, changes) {
@@ -223,6 +314,7 @@ function updateCard(card, camera) {
   badge.className = `badge state badge-${camera.state}`;
   $(".fps", card).textContent = camera.state === "live" ? `${(camera.fps || 0).toFixed(1)} fps` : "";
   $(".reason", card).textContent = camera.reason || "";
+  if (card._zones && "mask" in camera) card._zones.show(camera.mask);
   const toggle = $(".toggle", card);
   toggle.textContent = camera.active ? "Stop" : "Activate";
   toggle.classList.toggle("active", Boolean(camera.active));

@@ -94,3 +94,42 @@ def test_more_cameras_than_connections_all_show(
     page.wait_for_function(
         f"() => document.querySelector('.card img.live').src !== '{first}'", timeout=10000
     )
+
+
+def test_ignore_zones_drawn_on_the_picture_are_saved_and_shown(
+    serve: Callable[..., Running], page: Any, motion_video: Path
+) -> None:
+    server = serve()
+    cam = httpx.post(
+        f"{server.base}/api/cameras", json={"name": "yard", "source": f"file://{motion_video}"}
+    ).json()["id"]
+    errors: list[str] = []
+    page.on("pageerror", lambda error: errors.append(str(error)))
+    page.goto(server.base + "/")
+    card = page.locator(f'.card[data-id="{cam}"]')
+    page.wait_for_function(
+        f"() => document.querySelector('.card[data-id=\"{cam}\"] img.live').naturalWidth > 0",
+        timeout=20000,
+    )
+    card.locator("button.zones").click()
+    layer = card.locator("svg.zone-layer")
+    box = layer.bounding_box()
+    assert box is not None and box["width"] > 50
+    # Most of the left half of the frame, clicked corner by corner.
+    expected = ((0.05, 0.05), (0.5, 0.05), (0.5, 0.95), (0.05, 0.95))
+    for fx, fy in expected:
+        layer.click(position={"x": fx * box["width"], "y": fy * box["height"]})
+    card.locator("button.zone-save").click()
+    ((zone),) = wait_for(
+        lambda: httpx.get(f"{server.base}/api/cameras/{cam}").json()["mask"],
+        10,
+        "the zone on the server",
+    )
+    assert len(zone) == 4
+    for (x, y), (ex, ey) in zip(zone, expected, strict=True):
+        assert abs(x - ex) < 0.02 and abs(y - ey) < 0.02, zone
+    page.reload()
+    page.wait_for_selector(f'.card[data-id="{cam}"] svg.zone-layer polygon', timeout=20000)
+    assert card.locator("svg.zone-layer polygon").count() == 1
+    assert errors == []
+    assert page.evaluate("window.__csp") == [], "the editor keeps to the page's CSP"

@@ -296,12 +296,15 @@ class CameraProcess:
                 if conn is not None:
                     conn.send(command)
 
-    def stop(self, timeout: float) -> bool:
-        """Ask the process to stop its cameras and exit; True when it did in time."""
+    def request_stop(self) -> None:
+        """Ask the process to stop its cameras and exit (``wait`` for it)."""
         self._stopping.set()
         self.send(("exit",))
         for camera in list(self.cameras.values()):
             camera.hub.close()
+
+    def wait(self, timeout: float) -> bool:
+        """True when the process exited within ``timeout``; else it is killed."""
         process = self._process
         if process is None:
             return True

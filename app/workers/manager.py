@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import threading
+import time
 from collections.abc import Iterable
 from typing import Any
 
@@ -56,8 +57,11 @@ class CameraManager:
         return next((c.storage_error for c in self.all() if c.storage_error), None)
 
     def stop_all(self, timeout: float) -> bool:
-        """Stop every camera process (each gets ``timeout``); True when all stopped cleanly."""
-        stopped = [process.stop(timeout) for process in self._processes]
+        """Stop every camera process within ``timeout``; True when all stopped cleanly."""
+        for process in self._processes:
+            process.request_stop()
+        deadline = time.monotonic() + timeout
+        stopped = [p.wait(max(0.0, deadline - time.monotonic())) for p in self._processes]
         with self._lock:
             self._cameras.clear()
         return all(stopped)

@@ -41,7 +41,7 @@ A running-average background (the classic of Motion and of OpenCV's
   frames.
 
 Per-frame work is done on 8-bit images wherever a grey level is precise
-enough; the float models are only read and accumulated into, so a frame
+enough (masks are 0 or 255, so "a and not b" is one saturating subtraction); the float models are only read and accumulated into, so a frame
 allocates no new full-size float image (fresh large buffers cost page faults).
 """
 
@@ -163,7 +163,7 @@ class AdaptiveBackground(MotionMethod):
             # an object stepping in or a ghost being uncovered, not a sway,
             # and teaching it would make the region deaf to itself.
             solid = cv2.erode(raw, self._learning_kernel)
-            teach = cv2.bitwise_or(still, cv2.bitwise_and(flips, cv2.bitwise_not(solid)))
+            teach = cv2.bitwise_or(still, cv2.subtract(flips, solid))
             cv2.accumulateWeighted(difference, self._deviation, 1.0 / self._frame_index, mask=teach)
         else:
             cv2.accumulateWeighted(
@@ -225,7 +225,7 @@ class AdaptiveBackground(MotionMethod):
             gray,
             self._background,
             self.learning_rate,
-            mask=cv2.bitwise_and(still, cv2.bitwise_not(nearer_alternate)),
+            mask=cv2.subtract(still, nearer_alternate),
         )
         cv2.accumulateWeighted(
             gray, self._alternate, self.learning_rate, mask=cv2.bitwise_and(still, nearer_alternate)
@@ -236,13 +236,13 @@ class AdaptiveBackground(MotionMethod):
             cv2.compare(alternate, main, cv2.CMP_LT),
         )
         cv2.accumulateWeighted(
-            cv2.bitwise_and(matches, cv2.bitwise_not(self._previous_mask)),
+            cv2.subtract(matches, self._previous_mask),
             self._weight,
             self.mode_rate,
         )
         # A value that matches neither mode replaces a weak alternate.
-        unmatched = cv2.bitwise_and(
-            threshold_difference(cv2.min(main, alternate), threshold), cv2.bitwise_not(established)
+        unmatched = cv2.subtract(
+            threshold_difference(cv2.min(main, alternate), threshold), established
         )
         cv2.accumulateWeighted(gray, self._alternate, 1.0, mask=unmatched)
         cv2.copyTo(self._seed_weight, unmatched, self._weight)
@@ -283,7 +283,7 @@ class AdaptiveBackground(MotionMethod):
             cv2.compare(gray, cv2.subtract(lowest, margin), cv2.CMP_GE),
             cv2.compare(gray, cv2.add(highest, margin), cv2.CMP_LE),
         )
-        ghost = cv2.bitwise_and(cv2.bitwise_and(mask, inside), cv2.bitwise_not(changing))
+        ghost = cv2.subtract(cv2.bitwise_and(mask, inside), changing)
         cv2.accumulateWeighted(gray, self._background, 1.0, mask=ghost)
 
     def _learn(self, gray: GrayImage) -> MotionResult:

@@ -41,8 +41,9 @@ A running-average background (the classic of Motion and of OpenCV's
   frames.
 
 Per-frame work is done on 8-bit images wherever a grey level is precise
-enough (masks are 0 or 255, so "a and not b" is one saturating subtraction); the float models are only read and accumulated into, so a frame
-allocates no new full-size float image (fresh large buffers cost page faults).
+enough (masks are 0 or 255, so "a and not b" is one saturating subtraction);
+the float models are only read and accumulated into, so a frame allocates no
+new full-size float image (fresh large buffers cost page faults).
 """
 
 from __future__ import annotations

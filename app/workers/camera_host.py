@@ -16,6 +16,7 @@ say why they are down.
 from __future__ import annotations
 
 import contextlib
+import itertools
 import logging
 import multiprocessing
 import os
@@ -35,6 +36,8 @@ from app.workers.camera import CameraWorker
 from app.workers.hub import FrameHub, Kind, Picture, SentFrame
 
 log = logging.getLogger("vigil.cameras")
+
+_generations = itertools.count(1)
 
 RESTART_DELAY_S = 1.0
 """Wait before starting a camera process that died again (a crash loop stays cheap)."""
@@ -73,9 +76,17 @@ class _Link:
         with self._lock, contextlib.suppress(OSError, ValueError):  # The server is gone.
             self._conn.send(item)
 
+
+class _WorkerLink:
+    """One worker's messages (status, alarms, motion_end), tagged with its generation: the
+    server drops what an earlier worker of the same camera id still had in flight."""
+
+    def __init__(self, link: _Link, generation: int) -> None:
+        self._link = link
+        self._generation = generation
+
     def publish(self, message: dict[str, Any]) -> None:
-        """What workers call for status, alarms and motion_end (an ``EventBus`` stand-in)."""
-        self.send(("message", message))
+        self._link.send(("message", self._generation, message))
 
 
 class _FrameSender:
@@ -87,6 +98,7 @@ class _FrameSender:
 
     def __init__(self, link: _Link) -> None:
         self._link = link
+        self._generations: dict[int, int] = {}
         self._watching: dict[int, dict[Kind, int]] = {}
         self._pending: dict[int, Picture] = {}
         self._wake = threading.Condition()
@@ -94,9 +106,17 @@ class _FrameSender:
         self._thread = threading.Thread(target=self._run, name="frame-sender", daemon=True)
         self._thread.start()
 
-    def watch(self, camera_id: int, counts: dict[Kind, int]) -> None:
+    def start(self, camera_id: int, generation: int) -> None:
+        """A (new) worker for ``camera_id``: nothing watched until the server says so."""
         with self._wake:
-            self._watching[camera_id] = counts
+            self._generations[camera_id] = generation
+            self._watching.pop(camera_id, None)
+            self._pending.pop(camera_id, None)
+
+    def watch(self, camera_id: int, generation: int, counts: dict[Kind, int]) -> None:
+        with self._wake:
+            if self._generations.get(camera_id) == generation:
+                self._watching[camera_id] = counts
 
     def offer(self, camera_id: int, item: Picture) -> None:
         with self._wake:
@@ -117,6 +137,7 @@ class _FrameSender:
                     return
                 pending, self._pending = self._pending, {}
                 watching = {cid: dict(self._watching.get(cid, {})) for cid in pending}
+                generations = {cid: self._generations.get(cid) for cid in pending}
             for camera_id, item in pending.items():
                 counts = watching[camera_id]
                 try:
@@ -125,13 +146,16 @@ class _FrameSender:
                 except Exception:  # One bad frame must not stop every camera's pictures.
                     log.exception("camera %s: cannot encode a frame", camera_id)
                     continue
-                self._link.send(("frame", camera_id, item.seq, picture, histogram))
+                message = ("frame", camera_id, generations[camera_id], picture, histogram)
+                self._link.send(message)
 
 
 def run_cameras(conn: Connection, settings: Settings) -> None:
     """The camera process: run the cameras the server sends until it says exit or is gone."""
-    # Ctrl-C reaches the whole process group; the server decides when cameras stop.
+    # Ctrl-C reaches the whole process group; the server decides when cameras stop. A
+    # SIGTERM to the group (systemd) stops cleanly: open events end, exit status 0.
     signal.signal(signal.SIGINT, signal.SIG_IGN)
+    signal.signal(signal.SIGTERM, _exit_cleanly)
     logging.basicConfig(level=logging.INFO, format="%(levelname)s %(name)s: %(message)s")
     if settings.opencv_threads:
         cv2.setNumThreads(settings.opencv_threads)
@@ -156,9 +180,10 @@ def run_cameras(conn: Connection, settings: Settings) -> None:
             if op == "exit":
                 return
             if op == "start":
-                (row,) = args
+                row, generation = args
                 remove(row["id"])
-                worker = CameraWorker(row, settings, db, snapshots, link)
+                sender.start(row["id"], generation)
+                worker = CameraWorker(row, settings, db, snapshots, _WorkerLink(link, generation))
                 worker.hub.on_publish = lambda item, cid=row["id"]: sender.offer(cid, item)
                 workers[row["id"]] = worker
                 worker.start()
@@ -170,7 +195,7 @@ def run_cameras(conn: Connection, settings: Settings) -> None:
                 elif op == "update":
                     worker_or_none.update(**args[1])
                 elif op == "watch":
-                    sender.watch(args[0], args[1])
+                    sender.watch(args[0], args[1], args[2])
     finally:
         for worker in workers.values():
             worker.request_stop()
@@ -179,6 +204,10 @@ def run_cameras(conn: Connection, settings: Settings) -> None:
         sender.stop()
         if stopped:
             db.close()
+
+
+def _exit_cleanly(signum: int, frame: Any) -> None:
+    raise SystemExit(0)
 
 
 # --- the server's side -----------------------------------------------------------------------
@@ -191,9 +220,13 @@ class RemoteCamera:
         self.camera_id: int = row["id"]
         self.row = dict(row)
         self.process = process
+        self.generation = next(_generations)
+        """Tells this camera's worker from an earlier one of the same id (its messages and
+        frames may still be on their way after a ``PATCH source``)."""
         self.hub = FrameHub()
-        self.hub.on_watch = lambda counts: process.send(("watch", self.camera_id, counts))
+        self.hub.on_watch = self._send_watching
         self.storage_error: str | None = None
+        self._seq = 0  # The server numbers frames: a restarted process starts again at 1.
         self._status: dict[str, Any] = {  # Until the camera process reports.
             "camera_id": self.camera_id,
             "state": "connecting",
@@ -232,6 +265,19 @@ class RemoteCamera:
         self.row.update(changes)
         self.process.send(("update", self.camera_id, changes))
 
+    def start_command(self) -> tuple[Any, ...]:
+        return ("start", self.row, self.generation)
+
+    def watch_command(self) -> tuple[Any, ...]:
+        return ("watch", self.camera_id, self.generation, dict(self.hub.watching))
+
+    def _send_watching(self, _: dict[Kind, int]) -> None:
+        self.process.send(self.watch_command())
+
+    def received(self, picture: bytes | None, histogram: bytes | None) -> None:
+        self._seq += 1
+        self.hub.publish(SentFrame(self._seq, picture, histogram))
+
     def reported(self, message: dict[str, Any]) -> dict[str, Any]:
         """A status message from the camera process: kept, and completed for /ws."""
         if "storage_error" in message:
@@ -252,7 +298,6 @@ class CameraProcess:
         self._stopping = threading.Event()
         self._conn: Connection | None = None
         self._process: multiprocessing.process.BaseProcess | None = None
-        self._receiver: threading.Thread | None = None
 
     def start(self) -> None:
         context = multiprocessing.get_context("spawn")  # No fork of a threaded server.
@@ -265,41 +310,46 @@ class CameraProcess:
         )
         process.start()
         theirs.close()
-        with self._lock:
-            self._conn, self._process = ours, process
-            cameras = list(self.cameras.values())
-        for camera in cameras:  # After a restart: the same cameras, as they were.
-            self.send(("start", camera.row))
-            self.send(("watch", camera.camera_id, dict(camera.hub.watching)))
-        self._receiver = threading.Thread(
+        receiver = threading.Thread(
             target=self._receive, args=(ours, process), name=process.name, daemon=True
         )
-        self._receiver.start()
+        receiver.start()  # Before the replay: a child can block on a full pipe otherwise.
+        with self._lock:  # Replayed whole, before any later command.
+            self._conn, self._process = ours, process
+            if self._stopping.is_set():
+                self._send_locked(("exit",))
+            for camera in self.cameras.values():  # After a restart: the cameras as they were.
+                self._send_locked(camera.start_command())
+                self._send_locked(camera.watch_command())
 
     def add(self, camera: RemoteCamera) -> None:
         with self._lock:
             self.cameras[camera.camera_id] = camera
-        self.send(("start", camera.row))
+            self._send_locked(camera.start_command())
 
     def remove(self, camera_id: int) -> None:
         with self._lock:
             camera = self.cameras.pop(camera_id, None)
+            if camera is not None:
+                self._send_locked(("remove", camera_id))
         if camera is not None:
             camera.hub.close()
-            self.send(("remove", camera_id))
 
     def send(self, command: tuple[Any, ...]) -> None:
         with self._lock:
-            conn = self._conn
-            # A dead process's pipe refuses; its restart sends every camera again.
-            with contextlib.suppress(OSError, ValueError):
-                if conn is not None:
-                    conn.send(command)
+            self._send_locked(command)
+
+    def _send_locked(self, command: tuple[Any, ...]) -> None:
+        # A dead process's pipe refuses; its restart sends every camera again.
+        with contextlib.suppress(OSError, ValueError):
+            if self._conn is not None:
+                self._conn.send(command)
 
     def request_stop(self) -> None:
         """Ask the process to stop its cameras and exit (``wait`` for it)."""
-        self._stopping.set()
-        self.send(("exit",))
+        with self._lock:
+            self._stopping.set()
+            self._send_locked(("exit",))
         for camera in list(self.cameras.values()):
             camera.hub.close()
 
@@ -323,22 +373,23 @@ class CameraProcess:
             except (EOFError, OSError):
                 break
             if item[0] == "message":
-                self._forward(item[1])
+                self._forward(item[1], item[2])
             elif item[0] == "frame":
-                _, camera_id, seq, picture, histogram = item
+                _, camera_id, generation, picture, histogram = item
                 camera = self.cameras.get(camera_id)
-                if camera is not None:
-                    camera.hub.publish(SentFrame(seq, picture, histogram))
+                if camera is not None and camera.generation == generation:
+                    camera.received(picture, histogram)
         conn.close()
         process.join(5.0)
-        if self._stopping.is_set():
+        # Status 0: asked to exit, or stopped by SIGTERM with the server (systemd).
+        if self._stopping.is_set() or process.exitcode == 0:
             return
         self._restart(_exit_reason(process.exitcode))
 
-    def _forward(self, message: dict[str, Any]) -> None:
+    def _forward(self, generation: int, message: dict[str, Any]) -> None:
         camera = self.cameras.get(message.get("camera_id", -1))
-        if camera is None:
-            return  # Removed meanwhile: its last words concern nobody.
+        if camera is None or camera.generation != generation:
+            return  # Removed or replaced meanwhile: its last words concern nobody.
         if message.get("type") == "status":
             message = camera.reported(message)
         self.bus.publish(message)

@@ -26,6 +26,9 @@ from app.vision.detections import Detection
 from app.vision.histogram import GreyStats, grey_histogram, grey_stats, render_histogram
 from app.vision.types import GrayImage, Image, Mask
 
+Kind = Literal["picture", "histogram"]
+"""What a viewer watches: the (annotated) picture, or the grey-level histogram."""
+
 HISTOGRAM_WIDTH = 320
 """A histogram needs no more pixels than this (a JPEG is decoded at reduced scale)."""
 
@@ -56,6 +59,9 @@ class LiveFrame:
     _lock: threading.Lock = field(default_factory=threading.Lock, repr=False)
     _jpeg: bytes | None = None
     _histogram: bytes | None = None
+
+    def has(self, kind: Kind) -> bool:
+        return True  # Drawn on demand, either kind.
 
     def annotated(self) -> Image:
         picture = self.source.image()
@@ -103,6 +109,10 @@ class Picture(Protocol):
     @property
     def seq(self) -> int: ...
 
+    def has(self, kind: Kind) -> bool:
+        """Whether this frame carries a picture of ``kind``."""
+        ...
+
     def jpeg(self) -> bytes: ...
 
     def histogram_jpeg(self) -> bytes: ...
@@ -116,14 +126,14 @@ class SentFrame:
     picture: bytes | None
     histogram: bytes | None
 
+    def has(self, kind: Kind) -> bool:
+        return (self.picture if kind == "picture" else self.histogram) is not None
+
     def jpeg(self) -> bytes:
         return self.picture or b""
 
     def histogram_jpeg(self) -> bytes:
         return self.histogram or b""
-
-
-Kind = Literal["picture", "histogram"]
 
 
 class FrameHub:
@@ -184,8 +194,8 @@ class FrameHub:
             with contextlib.suppress(RuntimeError):
                 loop.call_soon_threadsafe(event.set)
 
-    async def next(self, after_seq: int, timeout: float) -> Picture | None:
-        """A frame newer than ``after_seq``, or None after ``timeout`` seconds."""
+    async def next(self, after_seq: int, timeout: float, kind: Kind = "picture") -> Picture | None:
+        """A frame newer than ``after_seq`` with a ``kind`` picture, or None after ``timeout``."""
         event = asyncio.Event()
         key = (asyncio.get_running_loop(), event)
         with self._lock:
@@ -197,7 +207,7 @@ class FrameHub:
                 if self.closed:
                     return None
                 latest = self._latest
-                if latest is not None and latest.seq > after_seq:
+                if latest is not None and latest.seq > after_seq and latest.has(kind):
                     return latest
                 remaining = deadline - time.monotonic()
                 if remaining <= 0:

@@ -18,6 +18,7 @@ class CameraManager:
         self._processes = [CameraProcess(i, settings, bus) for i in range(count)]
         self._cameras: dict[int, RemoteCamera] = {}
         self._lock = threading.Lock()
+        self._changing = threading.RLock()
 
     def start_all(self, cameras: Iterable[dict[str, Any]]) -> None:
         for process in self._processes:
@@ -27,13 +28,14 @@ class CameraManager:
 
     def start(self, camera: dict[str, Any]) -> RemoteCamera:
         """Run a camera (again, with its new row, if it runs already) in the least busy process."""
-        self.remove(camera["id"])
-        process = min(self._processes, key=lambda p: len(p.cameras))
-        remote = RemoteCamera(camera, process)
-        with self._lock:
-            self._cameras[camera["id"]] = remote
-        process.add(remote)
-        return remote
+        with self._changing:  # Two PATCHes of one camera must not leave two workers.
+            self.remove(camera["id"])
+            process = min(self._processes, key=lambda p: len(p.cameras))
+            remote = RemoteCamera(camera, process)
+            with self._lock:
+                self._cameras[camera["id"]] = remote
+            process.add(remote)
+            return remote
 
     def restart(self, camera: dict[str, Any]) -> RemoteCamera:
         return self.start(camera)
@@ -47,10 +49,11 @@ class CameraManager:
             return list(self._cameras.values())
 
     def remove(self, camera_id: int) -> None:
-        with self._lock:
-            camera = self._cameras.pop(camera_id, None)
-        if camera is not None:
-            camera.process.remove(camera_id)
+        with self._changing:
+            with self._lock:
+                camera = self._cameras.pop(camera_id, None)
+            if camera is not None:
+                camera.process.remove(camera_id)
 
     def storage_error(self) -> str | None:
         """Why a camera's snapshots are not being saved, if one's are not."""

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import threading
 from collections.abc import Callable
 from pathlib import Path
 
@@ -69,3 +70,42 @@ def test_a_camera_process_that_dies_is_restarted_with_its_cameras(
     assert view["state"] == "live" and view["active"]
     (again,) = _camera_processes()
     assert again.pid != host.pid
+
+
+def _frames_from(url: str, received: list[int], stop: threading.Event) -> None:
+    """Count the JPEG parts of an MJPEG stream until ``stop``."""
+    with httpx.stream("GET", url, timeout=30) as response:
+        for chunk in response.iter_bytes():
+            received[0] += chunk.count(b"\xff\xd8")
+            if stop.is_set():
+                return
+
+
+def test_an_open_stream_carries_on_through_a_restart_and_a_new_source(
+    serve: Callable[..., Running], motion_video: Path, tmp_path: Path
+) -> None:
+    server = serve(camera_processes=1)
+    cam = _add_active_camera(server.base, motion_video, "porch")
+    url = f"{server.base}/api/cameras/{cam}/stream.mjpg"
+    received = [0]
+    stop = threading.Event()
+    viewer = threading.Thread(target=_frames_from, args=(url, received, stop), daemon=True)
+    viewer.start()
+    try:
+        wait_for(lambda: received[0] > 10, 20, "frames before the crash")
+        (host,) = _camera_processes()
+        host.kill()
+        wait_for(lambda: _camera(server.base, cam)["state"] == "error", 10, "the crash seen")
+        before = received[0]
+        wait_for(lambda: received[0] > before + 10, 30, "frames after the restart")
+
+        other = write_video(tmp_path / "other.avi")
+        changed = httpx.patch(
+            f"{server.base}/api/cameras/{cam}", json={"source": f"file://{other}"}
+        )
+        changed.raise_for_status()
+        # The old stream ends with its worker; a new viewer gets the new source's frames.
+        fresh = httpx.get(f"{server.base}/api/cameras/{cam}/frame.jpg", timeout=10)
+        assert fresh.status_code == 200 and fresh.content[:2] == b"\xff\xd8"
+    finally:
+        stop.set()

@@ -32,7 +32,7 @@ async def _frames(request: Request, camera: Camera, kind: Kind) -> AsyncIterator
     seq = 0
     with hub.watch(kind):
         while not svc.closing and not hub.closed:
-            item = await hub.next(seq, 1.0)
+            item = await hub.next(seq, 1.0, kind)
             if await request.is_disconnected():
                 return
             if item is None:
@@ -64,14 +64,15 @@ async def histogram_stream(request: Request, camera_id: int) -> StreamingRespons
 async def _latest(camera: Camera, kind: Kind) -> Picture:
     """A fresh frame: a poller counts as a viewer until it has one (a camera process
     sends pictures only while someone watches)."""
-    with camera.hub.watch(kind):
-        latest = camera.hub.latest
-        item = await camera.hub.next(latest.seq if latest else 0, 3.0)
-    item = item or camera.hub.latest
+    item = None
+    if camera.state in ("connecting", "live"):
+        with camera.hub.watch(kind):
+            latest = camera.hub.latest
+            item = await camera.hub.next(latest.seq if latest else 0, 3.0, kind)
     if item is None:
         raise HTTPException(
             503,
-            f"no picture yet: camera is {camera.state}"
+            f"no picture now: camera is {camera.state}"
             + (f" ({camera.reason})" if camera.reason else ""),
         )
     return item

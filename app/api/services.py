@@ -62,7 +62,7 @@ class Services:
         settings = self.settings
         settings.data_dir.mkdir(parents=True, exist_ok=True)
         self.db = Database(settings.db_path)
-        closed = self.db.close_open_events()  # No worker runs yet: these are the last run's.
+        closed = len(self.db.close_open_events())  # No worker runs yet: the last run's.
         if closed:
             log.info("closed %d event(s) left open when the server last stopped", closed)
         self._snapshots = SnapshotStore(settings.snapshots_dir)

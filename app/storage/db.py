@@ -209,18 +209,20 @@ class Database:
                 (ended_at, max_area, json.dumps(sorted(track_ids)), event_id),
             )
 
-    def close_open_events(self) -> int:
-        """End the events a previous run left open (it was killed or lost power).
+    def close_open_events(self, camera_id: int | None = None) -> list[dict[str, Any]]:
+        """End the events a killed run (or camera process) left open; the events it ended.
 
         Each ends at its last snapshot, or where it started: the last moment known
         to have had motion, not the moment the server came back.
         """
         with self._tx() as conn:
-            return conn.execute(
+            rows = conn.execute(
                 "UPDATE events SET ended_at = COALESCE("
                 " (SELECT MAX(ts) FROM snapshots WHERE event_id = events.id), started_at)"
-                " WHERE ended_at IS NULL"
-            ).rowcount
+                " WHERE ended_at IS NULL AND (? IS NULL OR camera_id = ?) RETURNING *",
+                (camera_id, camera_id),
+            ).fetchall()
+        return [_event(row) for row in rows]
 
     def events(
         self,

@@ -180,8 +180,10 @@ def run_cameras(conn: Connection, settings: Settings) -> None:
             if op == "exit":
                 return
             if op == "start":
-                row, generation = args
+                row, generation, recovering = args
                 remove(row["id"])
+                if recovering:  # The process before this one died with its events open.
+                    _end_events(db, link, row["id"], generation)
                 sender.start(row["id"], generation)
                 worker = CameraWorker(row, settings, db, snapshots, _WorkerLink(link, generation))
                 worker.hub.on_publish = lambda item, cid=row["id"]: sender.offer(cid, item)
@@ -204,6 +206,19 @@ def run_cameras(conn: Connection, settings: Settings) -> None:
         sender.stop()
         if stopped:
             db.close()
+
+
+def _end_events(db: Database, link: _Link, camera_id: int, generation: int) -> None:
+    for event in db.close_open_events(camera_id):
+        end = {
+            "type": "motion_end",
+            "camera_id": camera_id,
+            "event_id": event["id"],
+            "ts": event["ended_at"],
+            "duration_s": round(event["ended_at"] - event["started_at"], 3),
+            "max_area": round(event["max_area"], 1),
+        }
+        link.send(("message", generation, end))
 
 
 def _exit_cleanly(signum: int, frame: Any) -> None:
@@ -265,8 +280,8 @@ class RemoteCamera:
         self.row.update(changes)
         self.process.send(("update", self.camera_id, changes))
 
-    def start_command(self) -> tuple[Any, ...]:
-        return ("start", self.row, self.generation)
+    def start_command(self, recovering: bool = False) -> tuple[Any, ...]:
+        return ("start", self.row, self.generation, recovering)
 
     def watch_command(self) -> tuple[Any, ...]:
         return ("watch", self.camera_id, self.generation, dict(self.hub.watching))
@@ -319,7 +334,7 @@ class CameraProcess:
             if self._stopping.is_set():
                 self._send_locked(("exit",))
             for camera in self.cameras.values():  # After a restart: the cameras as they were.
-                self._send_locked(camera.start_command())
+                self._send_locked(camera.start_command(recovering=True))
                 self._send_locked(camera.watch_command())
 
     def add(self, camera: RemoteCamera) -> None:

@@ -55,11 +55,13 @@ def test_a_camera_process_that_dies_is_restarted_with_its_cameras(
     server = serve(camera_processes=1)
     with WsClient(server.ws) as ws:
         cam = _add_active_camera(server.base, motion_video, "porch")
-        ws.wait("alarm", 30, camera_id=cam)
+        (alarm,) = ws.wait("alarm", 30, camera_id=cam)
         (host,) = _camera_processes()
-        host.kill()  # As a decoder crash would end it.
+        host.kill()  # As a decoder crash would end it, mid-event.
         down = ws.wait("status", 10, camera_id=cam, state="error")[0]
         assert "camera process died (signal 9, SIGKILL)" in down["reason"]
+        # The event the dead process left open is ended by its successor.
+        ws.wait("motion_end", 20, event_id=alarm["event_id"])
         alarms_before = len(ws.of_type("alarm", camera_id=cam))
         wait_for(
             lambda: len(ws.of_type("alarm", camera_id=cam)) > alarms_before,

@@ -38,6 +38,8 @@ class AnalysisOptions:
     calibration: GroundPlane | None = None
     fps: float | None = None
     """Frame rate of a folder of frames (a video's own rate is read from it)."""
+    max_pixels: int | None = None
+    """Largest frame (width x height) accepted, checked from the header before decoding."""
     quiet_s: float = 1.0
     """Seconds without motion that end an event."""
 
@@ -112,7 +114,7 @@ def analyze(
     when the input or the truth cannot be used.
     """
     options = options or AnalysisOptions()
-    source = open_input(input_path, options.fps)
+    source = open_input(input_path, options.fps, options.max_pixels)
     truth = load_truth(options.truth, source.frame_numbers) if options.truth else None
     out_dir.mkdir(parents=True, exist_ok=True)
     (out_dir / "snapshots").mkdir(exist_ok=True)

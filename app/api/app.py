@@ -100,16 +100,18 @@ class BodyLimit:
         if scope["type"] != "http" or scope["method"] in ("GET", "HEAD", "OPTIONS"):
             await self.app(scope, receive, send)
             return
-        if scope["path"].rstrip("/") == "/api/analyses":
-            limit = self.upload_limit + self.SLACK
-            refusal = _json_refusal(f"upload larger than {self.upload_limit // (1 << 20)} MB")
-        else:
-            limit = self.other_limit
-            refusal = _json_refusal(f"request body larger than {self.other_limit // 1024} KB")
+        upload = scope["path"].rstrip("/") == "/api/analyses"
+        limit = self.upload_limit + self.SLACK if upload else self.other_limit
+
+        def refusal() -> tuple[Message, Message]:
+            if upload:
+                return _json_refusal(f"upload larger than {self.upload_limit // (1 << 20)} MB")
+            return _json_refusal(f"request body larger than {self.other_limit // 1024} KB")
+
         length = dict(scope.get("headers", [])).get(b"content-length", b"")
         if length.isdigit() and int(length) > limit:
-            await send(refusal[0])
-            await send(refusal[1])
+            for message in refusal():
+                await send(message)
             return
         received = 0
         refused = False
@@ -128,15 +130,15 @@ class BodyLimit:
             if not refused:
                 await send(message)
             elif message["type"] == "http.response.start":
-                await send(refusal[0])
+                await send(refusal()[0])
             elif message["type"] == "http.response.body" and not message.get("more_body"):
-                await send(refusal[1])
+                await send(refusal()[1])
 
         try:
             await self.app(scope, counting_receive, replacing_send)
         except BodyTooLargeError:
-            await send(refusal[0])
-            await send(refusal[1])
+            for message in refusal():
+                await send(message)
 
 
 def _json_refusal(detail: str) -> tuple[Message, Message]:

@@ -15,7 +15,7 @@ from app.core.config import Settings
 from app.storage.db import Database
 from app.storage.files import SnapshotStore, prune, prune_to_size
 from app.vision.motion import DEFAULT_METHOD
-from app.workers.analysis import AnalysisManager
+from app.workers.analysis import AnalysisLimits, AnalysisManager
 from app.workers.bus import EventBus
 from app.workers.camera_host import Camera
 from app.workers.manager import CameraManager
@@ -73,6 +73,7 @@ class Services:
             settings.analyses_dir,
             settings.analysis_workers,
             settings.analysis_timeout_s,
+            AnalysisLimits(settings.max_upload_pixels, settings.analysis_memory_mb or None),
         )
         if settings.demo_camera and not self.db.cameras():
             self.db.add_camera("demo", "demo", DEFAULT_METHOD, settings.default_min_area)

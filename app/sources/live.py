@@ -103,9 +103,17 @@ def demo_scene() -> Scene:
     """
     fps = 15.0
 
-    def enter(x: float, y: float, vx: float, vy: float, frame: int) -> tuple[float, float]:
-        """Start position so that the object is at (x, y) in ``frame``."""
-        return (x - vx * frame / fps, y - vy * frame / fps)
+    def crossing(
+        at: tuple[float, float],
+        velocity: tuple[float, float],
+        size: tuple[int, int],
+        grey: int,
+        frames: tuple[int, int],
+    ) -> MovingObject:
+        """An object whose top-left corner is at ``at`` in the first of ``frames``."""
+        first, last = frames
+        start = (at[0] - velocity[0] * first / fps, at[1] - velocity[1] * first / fps)
+        return MovingObject(start, velocity, size, grey, first_frame=first, last_frame=last)
 
     return Scene(
         name="demo",
@@ -114,38 +122,10 @@ def demo_scene() -> Scene:
         frames=360,
         seed=11,
         objects=(
-            MovingObject(
-                enter(20, 150, 60.0, 0.0, 0),
-                (60.0, 0.0),
-                (26, 60),
-                210,
-                first_frame=0,
-                last_frame=100,
-            ),
-            MovingObject(
-                enter(440, 60, -110.0, 4.0, 140),
-                (-110.0, 4.0),
-                (70, 34),
-                35,
-                first_frame=140,
-                last_frame=200,
-            ),
-            MovingObject(
-                enter(10, 170, 50.0, 0.0, 240),
-                (50.0, 0.0),
-                (22, 56),
-                200,
-                first_frame=240,
-                last_frame=320,
-            ),
-            MovingObject(
-                enter(440, 110, -45.0, 3.0, 240),
-                (-45.0, 3.0),
-                (24, 58),
-                60,
-                first_frame=240,
-                last_frame=320,
-            ),
+            crossing((20, 150), (60.0, 0.0), (26, 60), 210, (0, 100)),
+            crossing((440, 60), (-110.0, 4.0), (70, 34), 35, (140, 200)),
+            crossing((10, 170), (50.0, 0.0), (22, 56), 200, (240, 320)),
+            crossing((440, 110), (-45.0, 3.0), (24, 58), 60, (240, 320)),
         ),
     )
 

@@ -22,7 +22,7 @@ from app.vision.types import Image
 @dataclass(frozen=True)
 class MovingObject:
     start: tuple[float, float]
-    """Top-left corner (pixels) at the object's first frame."""
+    """Top-left corner (pixels) at time 0, the scene's frame 0 (shown from ``first_frame``)."""
     velocity: tuple[float, float]
     """Pixels per second."""
     size: tuple[int, int]

@@ -39,16 +39,22 @@ class AnalysisManager:
     """A queue of uploads and a few threads, each supervising one child process at a time."""
 
     def __init__(
-        self, db: Database, bus: EventBus, root: Path, workers: int = 1, timeout_s: float = 3600.0
+        self,
+        db: Database,
+        bus: EventBus,
+        root: Path,
+        workers: int = 1,
+        timeout_s: float = 3600.0,
+        limits: AnalysisLimits | None = None,
     ) -> None:
         self.db = db
         self.bus = bus
         self.root = root
         self.timeout_s = timeout_s
+        self.limits = limits or AnalysisLimits()
         self.progress: dict[str, float] = {}
         self._queue: queue.Queue[str | None] = queue.Queue()
         self._children: dict[str, subprocess.Popen[str]] = {}
-        self._limits: dict[str, AnalysisLimits] = {}
         self._lock = threading.Lock()
         self._stopping = threading.Event()
         self._threads = [
@@ -80,9 +86,7 @@ class AnalysisManager:
     def folder(self, analysis_id: str) -> Path:
         return self.root / analysis_id
 
-    def submit(self, analysis_id: str, limits: AnalysisLimits | None = None) -> None:
-        if limits is not None:
-            self._limits[analysis_id] = limits
+    def submit(self, analysis_id: str) -> None:
         self._queue.put(analysis_id)
 
     def _serve(self) -> None:
@@ -97,7 +101,6 @@ class AnalysisManager:
                 self._finish(analysis_id, "failed", f"analysis failed: {exc}")
 
     def _run(self, analysis_id: str) -> None:
-        limits = self._limits.pop(analysis_id, AnalysisLimits())
         row = self.db.analysis(analysis_id)
         if row is None:
             return
@@ -119,8 +122,8 @@ class AnalysisManager:
         options = {
             **row["options"],
             "name": row["filename"],
-            "max_pixels": limits.max_pixels,
-            "memory_mb": limits.memory_mb,
+            "max_pixels": self.limits.max_pixels,
+            "memory_mb": self.limits.memory_mb,
         }
         command = self.command(inputs[0], folder / "out", options)
         child = subprocess.Popen(  # nosec B603  # sys.executable and our module; no shell

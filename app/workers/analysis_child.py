@@ -76,7 +76,6 @@ def main(argv: list[str] | None = None) -> int:
 
         from app.analysis import runner
         from app.core.atomic import write_atomic
-        from app.sources.files import open_input
         from app.vision.pipeline import PipelineConfig
 
         config = PipelineConfig(
@@ -111,11 +110,9 @@ def main(argv: list[str] | None = None) -> int:
             fraction = min(0.99, done / (expected or done + 300))
             _say({"progress": round(fraction, 4), "frames": done})
 
-        # Refuse what is too large from its header before the analysis decodes a frame.
-        open_input(input_path, max_pixels=options.get("max_pixels"))
-        report = runner.analyze(
-            input_path, out_dir, runner.AnalysisOptions(pipeline=config), progress, keep_live_frame
-        )
+        # What is too large is refused from its header, before a frame is decoded.
+        analysis = runner.AnalysisOptions(pipeline=config, max_pixels=options.get("max_pixels"))
+        report = runner.analyze(input_path, out_dir, analysis, progress, keep_live_frame)
         if report["frames"] < MIN_FRAMES:
             _say(
                 {

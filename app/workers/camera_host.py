@@ -182,10 +182,11 @@ def run_cameras(conn: Connection, settings: Settings) -> None:
             if op == "start":
                 row, generation, recovering = args
                 remove(row["id"])
+                worker_link = _WorkerLink(link, generation)
                 if recovering:  # The process before this one died with its events open.
-                    _end_events(db, link, row["id"], generation)
+                    _end_events(db, worker_link, row["id"])
                 sender.start(row["id"], generation)
-                worker = CameraWorker(row, settings, db, snapshots, _WorkerLink(link, generation))
+                worker = CameraWorker(row, settings, db, snapshots, worker_link)
                 worker.hub.on_publish = lambda item, cid=row["id"]: sender.offer(cid, item)
                 workers[row["id"]] = worker
                 worker.start()
@@ -208,7 +209,7 @@ def run_cameras(conn: Connection, settings: Settings) -> None:
             db.close()
 
 
-def _end_events(db: Database, link: _Link, camera_id: int, generation: int) -> None:
+def _end_events(db: Database, link: _WorkerLink, camera_id: int) -> None:
     for event in db.close_open_events(camera_id):
         end = {
             "type": "motion_end",
@@ -218,7 +219,7 @@ def _end_events(db: Database, link: _Link, camera_id: int, generation: int) -> N
             "duration_s": round(event["ended_at"] - event["started_at"], 3),
             "max_area": round(event["max_area"], 1),
         }
-        link.send(("message", generation, end))
+        link.publish(end)
 
 
 def _exit_cleanly(signum: int, frame: Any) -> None:

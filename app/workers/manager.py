@@ -37,9 +37,6 @@ class CameraManager:
             process.add(remote)
             return remote
 
-    def restart(self, camera: dict[str, Any]) -> RemoteCamera:
-        return self.start(camera)
-
     def get(self, camera_id: int) -> RemoteCamera | None:
         with self._lock:
             return self._cameras.get(camera_id)

@@ -19,7 +19,6 @@ from app.api.routes.inputs import is_control
 from app.api.routes.streams import MJPEG_TYPE, NO_CACHE, mjpeg_part
 from app.api.services import Services, services
 from app.vision.motion import METHODS
-from app.workers.analysis import AnalysisLimits
 from app.workers.analysis_child import LIVE_FRAME
 
 router = APIRouter(prefix="/api/analyses", tags=["analyses"])
@@ -86,8 +85,7 @@ async def upload(
         raise HTTPException(422, "the uploaded file is empty")
     options = {"method": method or None, "sensitivity": sensitivity, "min_area": min_area}
     svc.database.add_analysis(analysis_id, filename, options)
-    limits = AnalysisLimits(svc.settings.max_upload_pixels, svc.settings.analysis_memory_mb or None)
-    svc.analyses.submit(analysis_id, limits)
+    svc.analyses.submit(analysis_id)
     svc.bus.publish({"type": "status", "analysis_id": analysis_id, "status": "queued"})
     return {"id": analysis_id, "url": f"/api/analyses/{analysis_id}"}
 

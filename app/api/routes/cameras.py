@@ -126,7 +126,7 @@ def change_camera(request: Request, camera_id: int, body: CameraPatch) -> dict[s
         raise HTTPException(404, f"no camera {camera_id}")
     worker = svc.cameras.get(camera_id)
     if worker is None or ("source" in changes and changes["source"] != before["source"]):
-        svc.cameras.restart(camera)
+        svc.cameras.start(camera)
     else:
         worker.update(**changes)
     return svc.camera_view(camera)

@@ -31,6 +31,7 @@ import cv2
 from app.core.config import Settings
 from app.storage.db import Database
 from app.storage.files import SnapshotStore
+from app.vision.motion.adaptive_background import warm_up
 from app.workers.bus import EventBus
 from app.workers.camera import CameraWorker
 from app.workers.hub import FrameHub, Kind, Picture, SentFrame
@@ -159,6 +160,7 @@ def run_cameras(conn: Connection, settings: Settings) -> None:
     logging.basicConfig(level=logging.INFO, format="%(levelname)s %(name)s: %(message)s")
     if settings.opencv_threads:
         cv2.setNumThreads(settings.opencv_threads)
+    threading.Thread(target=warm_up, name="warm-up", daemon=True).start()
     link = _Link(conn)
     db = Database(settings.db_path)
     snapshots = SnapshotStore(settings.snapshots_dir)

@@ -40,10 +40,10 @@ A running-average background (the classic of Motion and of OpenCV's
   (a ghost or a stopped object) becomes background after ``absorb_after``
   frames.
 
-Per-frame work is done on 8-bit images wherever a grey level is precise
-enough (masks are 0 or 255, so "a and not b" is one saturating subtraction);
-the float models are only read and accumulated into, so a frame allocates no
-new full-size float image (fresh large buffers cost page faults).
+Per-pixel steps are compiled loops (``adaptive_kernels``), each reading a
+pixel once; the neighbourhood steps (dilate, erode, regions) are OpenCV's.
+Buffers that do not leave a frame are kept and reused (fresh large buffers
+cost page faults).
 """
 
 from __future__ import annotations
@@ -53,7 +53,8 @@ import math
 import cv2
 import numpy as np
 
-from app.vision.motion.base import MotionMethod, MotionResult, threshold_difference
+from app.vision.motion import adaptive_kernels as kernels
+from app.vision.motion.base import MotionMethod, MotionResult
 from app.vision.types import FloatImage, GrayImage, Mask
 
 MEAN_ABS_NOISE = math.sqrt(2.0 / math.pi)
@@ -66,9 +67,20 @@ GAIN_GRID = 4
 """The gain is measured on every GAIN_GRID-th row and column."""
 
 
-def _scalar(value: float) -> np.ndarray:
-    """A number as OpenCV's arithmetic takes it (its stubs allow no bare float)."""
-    return np.array([value])
+class _Buffers:
+    """8-bit images that live within one frame, kept from frame to frame."""
+
+    def __init__(self, shape: tuple[int, ...]) -> None:
+        self.main = np.empty(shape, np.uint8)
+        self.alternate = np.empty(shape, np.uint8)
+        self.limit = np.empty(shape, np.uint8)
+        self.changing = np.empty(shape, np.uint8)
+        self.lowest = np.empty(shape, np.uint8)
+        self.highest = np.empty(shape, np.uint8)
+        # Raw motion alternates between these two: one holds the previous frame's.
+        self.raw = np.zeros(shape, np.uint8)
+        self.spare_raw = np.zeros(shape, np.uint8)
+        self.nothing = np.zeros(shape, np.uint8)
 
 
 class AdaptiveBackground(MotionMethod):
@@ -115,9 +127,8 @@ class AdaptiveBackground(MotionMethod):
         self._background: FloatImage | None = None
         self._alternate: FloatImage | None = None
         self._weight: FloatImage | None = None  # 0..255: how often the alternate recurs
-        self._seed_weight: FloatImage | None = None  # constant: a new alternate, seen once
         self._deviation: FloatImage | None = None  # grey levels: mean |difference| when still
-        self._scratch: FloatImage | None = None
+        self._buffers: _Buffers | None = None
         self._previous_gray: GrayImage | None = None
         self._previous_mask: Mask | None = None
         self._previous_raw: Mask | None = None
@@ -125,131 +136,101 @@ class AdaptiveBackground(MotionMethod):
         self._frame_index = 0
 
     def apply(self, gray: GrayImage) -> MotionResult:
+        gray = np.ascontiguousarray(gray)
         if self._background is None or self._background.shape != gray.shape:
             return self._learn(gray)
         assert self._alternate is not None and self._weight is not None
-        assert self._previous_raw is not None and self._deviation is not None
-        assert self._previous_gray is not None
+        assert self._deviation is not None and self._buffers is not None
+        assert self._previous_gray is not None and self._previous_raw is not None
+        assert self._previous_mask is not None
+        buffers = self._buffers
         self._frame_index += 1
 
-        gain = self._gain(gray)
-        main = cv2.absdiff(gray, cv2.convertScaleAbs(self._background, alpha=gain))
-        alternate = cv2.absdiff(gray, cv2.convertScaleAbs(self._alternate, alpha=gain))
-        established = cv2.compare(self._weight, _scalar(255.0 * self.mode_weight), cv2.CMP_GE)
-        # A pixel's difference is to the nearer mode; a mode not yet
-        # established reads as "far" (255).
-        difference = cv2.min(main, cv2.bitwise_or(alternate, cv2.bitwise_not(established)))
+        established = 255.0 * self.mode_weight
+        difference = np.empty_like(gray)
+        kernels.compare_with_modes(
+            gray,
+            self._background,
+            self._alternate,
+            self._weight,
+            self._gain(gray),
+            established,
+            buffers.main,
+            buffers.alternate,
+            difference,
+        )
         self.noise.update(difference)
         threshold = self.threshold
 
-        raw = threshold_difference(difference, threshold)
-        if cv2.countNonZero(raw) > self.light_switch_fraction * raw.size:
+        k = self.noise.k
+        noise_deviation = MEAN_ABS_NOISE * (self.noise.sigma or 0.0)
+        raw = buffers.raw if buffers.raw is not self._previous_raw else buffers.spare_raw
+        # Rounded down (the -0.5): "difference > per_pixel" in grey levels then
+        # means what it means for the float threshold.
+        moving = kernels.threshold_and_limits(
+            difference,
+            self._deviation,
+            threshold,
+            noise_deviation,
+            k,
+            threshold - k * noise_deviation - 0.5,
+            raw,
+            buffers.limit,
+        )
+        if moving > self.light_switch_fraction * raw.size:
             result = self._learn(gray)
             return MotionResult(result.mask, difference, threshold, global_change=True)
-        per_pixel = self._per_pixel_threshold(threshold)
-        mask = self._hysteresis(difference, per_pixel)
-        still = cv2.bitwise_not(mask)
-
-        flips = cv2.bitwise_xor(raw, self._previous_raw)
-        # Flips (measured at the plain threshold) teach the variability too:
-        # without them a pixel that sways past its threshold would never be
-        # seen as background, and never learn that it sways.
-        teach = cv2.bitwise_or(still, flips)
-        if self._frame_index <= self.learning_frames:
-            # Learning the scene: the plain mean of every sample so far, not
-            # clipped, so swaying is known within one sway instead of after
-            # seconds of false alarms. An object that stops or creeps neither
-            # is still nor flips, so its inside stays sensitive; nor does a
-            # flip deep inside a solid off-background region teach: that is
-            # an object stepping in or a ghost being uncovered, not a sway,
-            # and teaching it would make the region deaf to itself.
-            solid = cv2.erode(raw, self._learning_kernel)
-            teach = cv2.bitwise_or(still, cv2.subtract(flips, solid))
-            cv2.accumulateWeighted(difference, self._deviation, 1.0 / self._frame_index, mask=teach)
-        else:
-            cv2.accumulateWeighted(
-                cv2.min(difference, per_pixel), self._deviation, self.deviation_rate, mask=teach
-            )
-        self._update_modes(gray, main, alternate, established, still, threshold)
-        changing = threshold_difference(cv2.absdiff(gray, self._previous_gray), threshold)
-        self._erode_ghosts(gray, mask, still, changing, threshold)
+        # Leaves and edges shift by a pixel or so, so a neighbour's variability is a
+        # pixel's own a moment later: each pixel's threshold is the largest in its 3x3.
+        per_pixel = cv2.dilate(buffers.limit, self._neighbour_kernel)
+        # Hysteresis: pixels above half their threshold count when a strong one (above
+        # it) is near, so low-contrast objects come out whole and weak noise stays out.
+        grown_strong = cv2.dilate(cv2.compare(difference, per_pixel, cv2.CMP_GT), self._grow_kernel)
+        learning = self._frame_index <= self.learning_frames
+        # While the scene is learned, a flip deep inside a solid off-background region
+        # is an object stepping in or a ghost uncovered, not a sway: it does not teach.
+        solid = cv2.erode(raw, self._learning_kernel) if learning else buffers.nothing
+        mask = np.empty_like(gray)
+        moving = kernels.learn(
+            gray,
+            self._previous_gray,
+            difference,
+            buffers.main,
+            buffers.alternate,
+            per_pixel,
+            grown_strong,
+            raw,
+            self._previous_raw,
+            self._previous_mask,
+            solid,
+            self._background,
+            self._alternate,
+            self._weight,
+            self._deviation,
+            threshold,
+            self.weak_fraction,
+            established,
+            255.0 * self.mode_rate,
+            self.learning_rate,
+            self.mode_rate,
+            1.0 / self._frame_index if learning else self.deviation_rate,
+            not learning,
+            mask,
+            buffers.changing,
+            buffers.lowest,
+            buffers.highest,
+        )
+        if moving:
+            self._erode_ghosts(gray, mask, buffers, threshold, learning)
         if self._frame_index % self.check_every == 0:
-            self._absorb_still_regions(gray, mask, changing)
+            self._absorb_still_regions(gray, mask, buffers.changing)
         self._previous_gray = gray
         self._previous_mask = mask
         self._previous_raw = raw
         return MotionResult(mask, difference, threshold)
 
-    def _per_pixel_threshold(self, threshold: float) -> GrayImage:
-        """threshold + k * (deviation beyond camera noise), largest in each 3x3.
-
-        Leaves and edges shift by a pixel or so, so a neighbour's
-        variability is a pixel's own a moment later.
-        """
-        assert self._deviation is not None and self._scratch is not None
-        k = self.noise.k
-        noise_deviation = MEAN_ABS_NOISE * (self.noise.sigma or 0.0)
-        cv2.max(self._deviation, _scalar(noise_deviation), dst=self._scratch)
-        # Rounded down (the -0.5): "difference > per_pixel" in grey levels
-        # then means what it means for the float threshold.
-        offset = threshold - k * noise_deviation - 0.5
-        per_pixel = cv2.convertScaleAbs(self._scratch, alpha=k, beta=offset)
-        return cv2.dilate(per_pixel, self._neighbour_kernel)
-
-    def _hysteresis(self, difference: GrayImage, per_pixel: GrayImage) -> Mask:
-        """Strong pixels (above the threshold) and the weaker ones next to them.
-
-        Low-contrast objects (night, camouflage) come out whole instead of in
-        fragments, while isolated weak noise pixels stay out.
-        """
-        strong = cv2.compare(difference, per_pixel, cv2.CMP_GT)
-        # Rounded down, as the strong threshold.
-        weak_threshold = cv2.convertScaleAbs(per_pixel, alpha=self.weak_fraction, beta=-0.5)
-        weak = cv2.compare(difference, weak_threshold, cv2.CMP_GT)
-        return cv2.bitwise_and(weak, cv2.dilate(strong, self._grow_kernel))
-
-    def _update_modes(
-        self,
-        gray: GrayImage,
-        main: GrayImage,
-        alternate: GrayImage,
-        established: Mask,
-        still: Mask,
-        threshold: float,
-    ) -> None:
-        """Teach each still pixel's nearer mode; count and seed alternates."""
-        assert self._background is not None and self._alternate is not None
-        assert self._weight is not None and self._seed_weight is not None
-        assert self._previous_mask is not None
-        nearer_alternate = cv2.bitwise_and(established, cv2.compare(alternate, main, cv2.CMP_LT))
-        cv2.accumulateWeighted(
-            gray,
-            self._background,
-            self.learning_rate,
-            mask=cv2.subtract(still, nearer_alternate),
-        )
-        cv2.accumulateWeighted(
-            gray, self._alternate, self.learning_rate, mask=cv2.bitwise_and(still, nearer_alternate)
-        )
-        # Recurrence: a match counts only right after a background frame.
-        matches = cv2.bitwise_and(
-            cv2.compare(alternate, _scalar(threshold), cv2.CMP_LE),
-            cv2.compare(alternate, main, cv2.CMP_LT),
-        )
-        cv2.accumulateWeighted(
-            cv2.subtract(matches, self._previous_mask),
-            self._weight,
-            self.mode_rate,
-        )
-        # A value that matches neither mode replaces a weak alternate.
-        unmatched = cv2.subtract(
-            threshold_difference(cv2.min(main, alternate), threshold), established
-        )
-        cv2.accumulateWeighted(gray, self._alternate, 1.0, mask=unmatched)
-        cv2.copyTo(self._seed_weight, unmatched, self._weight)
-
     def _erode_ghosts(
-        self, gray: GrayImage, mask: Mask, still: Mask, changing: Mask, threshold: float
+        self, gray: GrayImage, mask: Mask, buffers: _Buffers, threshold: float, learning: bool
     ) -> None:
         """Absorb moving pixels that look like the background right next to them.
 
@@ -270,22 +251,18 @@ class AdaptiveBackground(MotionMethod):
         Afterwards the 3x3 search keeps the rims of real objects safe.
         """
         assert self._background is not None
-        if not cv2.countNonZero(mask):
-            return
-        background = cv2.convertScaleAbs(self._background)
-        # Moving pixels become 255 for the minimum and 0 for the maximum, so
-        # only still neighbours set the range.
-        learning = self._frame_index <= self.learning_frames
         kernel = self._learning_kernel if learning else self._neighbour_kernel
-        lowest = cv2.erode(cv2.max(background, mask), kernel)
-        highest = cv2.dilate(cv2.bitwise_and(background, still), kernel)
-        margin = _scalar(threshold * self.weak_fraction)
-        inside = cv2.bitwise_and(
-            cv2.compare(gray, cv2.subtract(lowest, margin), cv2.CMP_GE),
-            cv2.compare(gray, cv2.add(highest, margin), cv2.CMP_LE),
+        # Moving pixels are 255 for the minimum and 0 for the maximum, so only
+        # still neighbours set the range.
+        kernels.absorb_ghosts(
+            gray,
+            mask,
+            buffers.changing,
+            cv2.erode(buffers.lowest, kernel),
+            cv2.dilate(buffers.highest, kernel),
+            round(threshold * self.weak_fraction),
+            self._background,
         )
-        ghost = cv2.subtract(cv2.bitwise_and(mask, inside), changing)
-        cv2.accumulateWeighted(gray, self._background, 1.0, mask=ghost)
 
     def _learn(self, gray: GrayImage) -> MotionResult:
         """Take this frame as the background (first frame, or after a light switch).
@@ -296,14 +273,13 @@ class AdaptiveBackground(MotionMethod):
         self._background = gray.astype(np.float32)
         self._alternate = self._background.copy()
         self._weight = np.zeros_like(self._background)
-        self._seed_weight = np.full_like(self._background, 255.0 * self.mode_rate)
-        self._scratch = np.zeros_like(self._background)
         if self._deviation is None or self._deviation.shape != gray.shape:
             self._deviation = np.zeros_like(self._background)
+        self._buffers = _Buffers(gray.shape)
         self._still_frames = np.zeros(gray.shape, np.uint16)
         self._previous_gray = gray
         self._previous_mask = np.zeros_like(gray)
-        self._previous_raw = self._previous_mask
+        self._previous_raw = self._buffers.spare_raw
         return MotionResult(self._previous_mask, self._previous_mask, self.threshold)
 
     def _gain(self, gray: GrayImage) -> float:
@@ -315,44 +291,49 @@ class AdaptiveBackground(MotionMethod):
         means, at a sixteenth of the cost.
         """
         assert self._background is not None and self._previous_mask is not None
-        step = GAIN_GRID
-        frame = gray[::step, ::step].astype(np.float32)
-        background = np.ascontiguousarray(self._background[::step, ::step])
-        limit = _scalar(GAIN_INLIERS * self.threshold)
-        inliers = cv2.compare(cv2.absdiff(frame, background), limit, cv2.CMP_LT)
-        inliers[self._previous_mask[::step, ::step] > 0] = 0
-        frame_mean = cv2.mean(frame, mask=inliers)[0]
-        background_mean = cv2.mean(background, mask=inliers)[0]
-        if background_mean < 1.0 or frame_mean < 1.0:
+        frame_sum, background_sum, count = kernels.gain_sums(
+            gray, self._background, self._previous_mask, GAIN_GRID, GAIN_INLIERS * self.threshold
+        )
+        if not count or background_sum < count or frame_sum < count:  # A mean below 1.
             return 1.0
-        return float(frame_mean / background_mean)
+        return frame_sum / background_sum
 
     def _absorb_still_regions(self, gray: GrayImage, mask: Mask, changing: Mask) -> None:
         """Count, per motion region, frames without any change; absorb the stale ones."""
         assert self._still_frames is not None and self._background is not None
-        count, labels = cv2.connectedComponents(mask, connectivity=8, ltype=cv2.CV_16U)
-        stale_label = np.full(count, 0xFFFF, np.uint16)
-        stale_label[0] = 0
-        stale_label[labels[changing > 0]] = 0
-        # Stale pixels count on, every other pixel restarts at 0.
-        self._still_frames += self.check_every
-        stale = np.take(stale_label, np.asarray(labels))
-        np.bitwise_and(self._still_frames, stale, out=self._still_frames)
-        absorb = cv2.compare(self._still_frames, _scalar(self.absorb_after), cv2.CMP_GE)
-        if cv2.countNonZero(absorb):
-            cv2.accumulateWeighted(gray, self._background, 1.0, mask=absorb)
-            self._still_frames[absorb > 0] = 0
+        regions, labels = cv2.connectedComponents(mask, connectivity=8, ltype=cv2.CV_16U)
+        kernels.age_still_regions(
+            labels,
+            regions,
+            changing,
+            gray,
+            self.check_every,
+            self.absorb_after,
+            self._still_frames,
+            self._background,
+        )
 
     def reset(self) -> None:
         super().reset()
         self._background = None
         self._alternate = None
         self._weight = None
-        self._seed_weight = None
         self._deviation = None
-        self._scratch = None
+        self._buffers = None
         self._previous_gray = None
         self._previous_mask = None
         self._previous_raw = None
         self._still_frames = None
         self._frame_index = 0
+
+
+def warm_up() -> None:
+    """Compile the model's kernels (the first run on a machine) or load them from the
+    cache now, rather than on a camera's first activated frame: a square that moves,
+    then stops and is absorbed, takes every step once."""
+    method = AdaptiveBackground(check_every=2, absorb_after=2)
+    for step in range(8):
+        frame = np.full((24, 32), 60, np.uint8)
+        left = min(step, 4) * 4
+        frame[8:16, left : left + 8] = 200
+        method.apply(frame)

@@ -1,0 +1,272 @@
+"""The adaptive model's per-pixel arithmetic, compiled: each function is one pass over a frame.
+
+Written as plain loops and compiled by Numba, so a frame's dozen per-pixel
+steps (compare with both modes, threshold, teach the variability and the
+modes, look for change) read each pixel once instead of once per OpenCV
+call: a live camera's frame costs a third of what the same model cost as
+some forty whole-image OpenCV calls, most of it in fetching images and code
+that had gone cold while the camera waited for its next frame. The
+neighbourhood steps (dilate, erode, connected regions) stay with OpenCV.
+
+Rounding is OpenCV's (``saturate_cast``: to nearest, halves to even), so a
+threshold means here what it means in the rest of the engine. The kernels
+release the GIL: cameras that share a process run them side by side.
+Compiled code is cached beside this file (or in the user's cache when that
+is read-only), so only the first run on a machine compiles.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from numba import njit
+
+from app.vision.types import FloatImage, GrayImage, Mask
+
+compiled = njit(cache=True, nogil=True)
+"""How every kernel here is compiled: cached on disk, without the GIL."""
+
+
+@njit(inline="always")
+def _to_u8(value: float) -> int:
+    """``saturate_cast<uchar>``: nearest (halves to even), clamped to 0..255."""
+    level = int(np.rint(value))
+    return 0 if level < 0 else (255 if level > 255 else level)
+
+
+@compiled
+def gain_sums(
+    gray: GrayImage,
+    background: FloatImage,
+    previous_mask: Mask,
+    step: int,
+    limit: float,
+) -> tuple[float, float, int]:
+    """Sums of frame and background grey, and their count, over every ``step``-th row
+    and column, where the pixel was still last frame and is within ``limit`` of the
+    background."""
+    frame_sum = 0.0
+    background_sum = 0.0
+    count = 0
+    rows, cols = gray.shape
+    for y in range(0, rows, step):
+        for x in range(0, cols, step):
+            if previous_mask[y, x]:
+                continue
+            value = float(gray[y, x])
+            model = float(background[y, x])
+            if abs(value - model) < limit:
+                frame_sum += value
+                background_sum += model
+                count += 1
+    return frame_sum, background_sum, count
+
+
+@compiled
+def compare_with_modes(
+    gray: GrayImage,
+    background: FloatImage,
+    alternate: FloatImage,
+    weight: FloatImage,
+    gain: float,
+    established_weight: float,
+    main_out: GrayImage,
+    alternate_out: GrayImage,
+    difference_out: GrayImage,
+) -> None:
+    """|frame - mode x gain| for both modes, and the difference to the nearer one (the
+    alternate counts only once established: its weight reaches ``established_weight``)."""
+    rows, cols = gray.shape
+    for y in range(rows):
+        for x in range(cols):
+            value = int(gray[y, x])
+            main = abs(value - _to_u8(background[y, x] * gain))
+            other = abs(value - _to_u8(alternate[y, x] * gain))
+            main_out[y, x] = main
+            alternate_out[y, x] = other
+            nearer = main
+            if other < main and weight[y, x] >= established_weight:
+                nearer = other
+            difference_out[y, x] = nearer
+
+
+@compiled
+def threshold_and_limits(
+    difference: GrayImage,
+    deviation: FloatImage,
+    threshold: float,
+    noise_deviation: float,
+    k: float,
+    offset: float,
+    raw_out: Mask,
+    limit_out: GrayImage,
+) -> int:
+    """Raw motion (difference above the plain threshold), and each pixel's own threshold
+    before the neighbourhood maximum: ``k`` x max(deviation, noise) + ``offset``.
+    Returns how many pixels moved."""
+    level = int(np.floor(threshold))  # cv2.threshold on 8 bits compares with the floor.
+    moving = 0
+    rows, cols = difference.shape
+    for y in range(rows):
+        for x in range(cols):
+            if difference[y, x] > level:
+                raw_out[y, x] = 255
+                moving += 1
+            else:
+                raw_out[y, x] = 0
+            spread = max(deviation[y, x], noise_deviation)
+            limit_out[y, x] = _to_u8(abs(spread * k + offset))
+    return moving
+
+
+@compiled
+def learn(
+    gray: GrayImage,
+    previous_gray: GrayImage,
+    difference: GrayImage,
+    main: GrayImage,
+    alternate_difference: GrayImage,
+    per_pixel: GrayImage,
+    grown_strong: Mask,
+    raw: Mask,
+    previous_raw: Mask,
+    previous_mask: Mask,
+    solid: Mask,
+    background: FloatImage,
+    alternate: FloatImage,
+    weight: FloatImage,
+    deviation: FloatImage,
+    threshold: float,
+    weak_fraction: float,
+    established_weight: float,
+    seed_weight: float,
+    learning_rate: float,
+    mode_rate: float,
+    deviation_rate: float,
+    clip_deviation: bool,
+    mask_out: Mask,
+    changing_out: Mask,
+    lowest_in_out: GrayImage,
+    highest_in_out: GrayImage,
+) -> int:
+    """The mask (hysteresis), then every model update one frame makes. Returns the
+    number of moving pixels.
+
+    Per pixel: moving = difference above half its own threshold and within reach of
+    a strong pixel (``grown_strong``); still pixels and flips of ``raw`` not inside
+    a ``solid`` region teach the variability (clipped at the pixel's threshold
+    unless ``clip_deviation`` is off); a still pixel teaches its nearer mode; an
+    alternate that matches right after a background frame gains weight, and a value
+    far from both modes replaces a weak alternate. Also writes what the ghost step
+    takes its neighbourhood extremes of: the rounded background, 255 where moving
+    (``lowest_in_out``) and 0 where moving (``highest_in_out``).
+    """
+    # Branch-free (selects, & and | rather than if, and, or) so the loop vectorises.
+    level = int(np.floor(threshold))
+    lr = np.float32(learning_rate)
+    mr = np.float32(mode_rate)
+    dr = np.float32(deviation_rate)
+    seed = np.float32(seed_weight)
+    full = np.float32(255.0)
+    moving = 0
+    rows, cols = gray.shape
+    for y in range(rows):
+        for x in range(cols):
+            value = gray[y, x]
+            shade = np.float32(value)
+            nearer = difference[y, x]
+            limit = per_pixel[y, x]
+            weak = _to_u8(abs(limit * weak_fraction - 0.5))
+            is_moving = (grown_strong[y, x] != 0) & (nearer > weak)
+            still = ~is_moving
+            # Variability: from still pixels and from flips of the plain threshold.
+            teach = still | ((raw[y, x] != previous_raw[y, x]) & (solid[y, x] == 0))
+            sample = np.float32(min(nearer, limit) if clip_deviation else nearer)
+            spread = deviation[y, x]
+            deviation[y, x] = spread + dr * (sample - spread) if teach else spread
+            main_difference = main[y, x]
+            other_difference = alternate_difference[y, x]
+            old_weight = weight[y, x]
+            established = old_weight >= established_weight
+            nearer_alternate = established & (other_difference < main_difference)
+            model = background[y, x]
+            if_taught = model + lr * (shade - model)
+            model = if_taught if still & ~nearer_alternate else model
+            background[y, x] = model
+            other = alternate[y, x]
+            other = other + lr * (shade - other) if still & nearer_alternate else other
+            # Recurrence: a match counts only right after a background frame.
+            matched = (
+                (other_difference <= threshold)
+                & (other_difference < main_difference)
+                & (previous_mask[y, x] == 0)
+            )
+            target = full if matched else np.float32(0.0)
+            new_weight = old_weight + mr * (target - old_weight)
+            # A value far from both modes replaces a weak alternate.
+            unmatched = ~established & (min(main_difference, other_difference) > level)
+            alternate[y, x] = shade if unmatched else other
+            weight[y, x] = seed if unmatched else new_weight
+            changing_out[y, x] = 255 if abs(int(value) - int(previous_gray[y, x])) > level else 0
+            rounded = _to_u8(model)
+            mask_out[y, x] = 255 if is_moving else 0
+            lowest_in_out[y, x] = 255 if is_moving else rounded
+            highest_in_out[y, x] = 0 if is_moving else rounded
+            moving += 1 if is_moving else 0
+    return moving
+
+
+@compiled
+def absorb_ghosts(
+    gray: GrayImage,
+    mask: Mask,
+    changing: Mask,
+    lowest: GrayImage,
+    highest: GrayImage,
+    margin: int,
+    background: FloatImage,
+) -> None:
+    """Moving pixels that do not change and sit within ``margin`` of the range of their
+    still neighbours' background (``lowest``..``highest``) become background at once.
+    (``lowest`` - ``margin`` and ``highest`` + ``margin`` saturate as OpenCV's would;
+    a grey level is within 0..255 anyway.)"""
+    rows, cols = gray.shape
+    for y in range(rows):
+        for x in range(cols):
+            value = int(gray[y, x])
+            ghost = (
+                (mask[y, x] != 0)
+                & (changing[y, x] == 0)
+                & (value >= int(lowest[y, x]) - margin)
+                & (value <= int(highest[y, x]) + margin)
+            )
+            background[y, x] = np.float32(value) if ghost else background[y, x]
+
+
+@compiled
+def age_still_regions(
+    labels: np.ndarray,
+    regions: int,
+    changing: Mask,
+    gray: GrayImage,
+    step: int,
+    absorb_after: int,
+    still_frames: np.ndarray,
+    background: FloatImage,
+) -> None:
+    """Count on, by ``step``, the frames of each motion region (``labels`` 1..regions-1)
+    in which none of its pixels changed; any other pixel restarts at 0. A region stale
+    for ``absorb_after`` frames becomes background."""
+    stale = np.ones(regions, np.bool_)
+    stale[0] = False
+    rows, cols = labels.shape
+    for y in range(rows):
+        for x in range(cols):
+            if changing[y, x]:
+                stale[labels[y, x]] = False
+    for y in range(rows):
+        for x in range(cols):
+            count = still_frames[y, x] + step if stale[labels[y, x]] else 0
+            if count >= absorb_after:
+                background[y, x] = np.float32(gray[y, x])
+                count = 0
+            still_frames[y, x] = count

@@ -190,12 +190,14 @@ class _Analysis:
             if self.scoring is not None:
                 self.scoring.add(index, [d.box for d in result.detections], mask_full)
         motion_area = sum(d.area for d in result.detections)
+        stats = result.stats
+        assert stats is not None  # The runner's pipeline measures every frame.
         self.frame_stats.append(
             {
                 "frame": index,
                 "time_s": round(time_s, 4),
-                "grey_mean": round(result.stats.mean, 3),
-                "grey_std": round(result.stats.std, 3),
+                "grey_mean": round(stats.mean, 3),
+                "grey_std": round(stats.std, 3),
                 "objects": len(result.detections),
                 "motion_area": round(motion_area, 1),
                 "threshold": round(result.threshold, 2),

@@ -13,6 +13,8 @@ from collections.abc import Callable
 from dataclasses import dataclass, field, replace
 from typing import ParamSpec, TypeVar
 
+import cv2
+
 from app.vision.blobs import BlobExtractor
 from app.vision.calibration import GroundPlane, GroundTracker
 from app.vision.detections import Detection
@@ -45,6 +47,9 @@ class PipelineConfig:
     ignore_zones: tuple[Polygon, ...] = ()
     """Polygons (fractions of the frame) where motion does not count."""
     tracker: TrackerConfig = field(default_factory=TrackerConfig)
+    grey_stats: bool = True
+    """Measure each frame's grey mean and deviation (the report's per-frame statistics).
+    A live camera turns it off: its histogram viewers measure the frames they draw."""
 
 
 @dataclass(frozen=True, slots=True)
@@ -57,7 +62,8 @@ class FrameResult:
     """Cleaned motion mask at detection resolution."""
     difference: GrayImage
     gray: GrayImage
-    stats: GreyStats
+    stats: GreyStats | None
+    """None when the config's ``grey_stats`` is off."""
     threshold: float
     global_change: bool
     scale: float
@@ -118,15 +124,17 @@ class Pipeline:
             time_s = index / self.fps
         clock = _StageClock(self.timings)
         gray = clock("grayscale", to_gray, frame)
-        stats = clock("histogram", grey_stats, gray)
+        stats = clock("histogram", grey_stats, gray) if self.config.grey_stats else None
         small = clock("downscale", self.downscale, gray)
         scale = (frame_width or gray.shape[1]) / small.shape[1]
         small = clock("denoise", self.denoise, small)
         small = clock("enhance", self.enhance, small)
         motion: MotionResult = clock("segment", self.method.apply, small)
         mask = clock("zones", self.zones, motion.mask)
-        mask = clock("morphology", self.morphology, mask)
-        blobs = clock("blobs", self.blobs, mask, scale)
+        blobs: list[Detection] = []
+        if cv2.countNonZero(mask):  # Most frames of a quiet scene: nothing to clean or measure.
+            mask = clock("morphology", self.morphology, mask)
+            blobs = clock("blobs", self.blobs, mask, scale)
         detections = clock("track", self.tracker.update, blobs, time_s)
         if self.ground is not None:
             detections = clock("calibrate", self.ground.update, detections, time_s)

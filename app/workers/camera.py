@@ -303,6 +303,7 @@ class CameraWorker:
             sensitivity=self._config["sensitivity"],
             min_area=float(self._config["min_area"]),
             ignore_zones=as_polygons(self._config["mask"]),
+            grey_stats=False,
         )
         return Pipeline(config, fps)
 

@@ -142,23 +142,21 @@ class Tracker:
         det_size = np.array([max(d.box.w, d.box.h) for d in detections], dtype=np.float64)
         track_size = np.array([max(t.box.w, t.box.h) for t in tracks], dtype=np.float64)
         missed = np.array([t.missed for t in tracks], dtype=np.float64)
-        cost = np.linalg.norm(det_xy[:, None, :] - np.array(predictions)[None, :, :], axis=2)
+        offset = det_xy[:, None, :] - np.array(predictions)[None, :, :]
+        cost = np.hypot(offset[..., 0], offset[..., 1])
         # The gate widens with the object's size and with each frame it went unseen.
         size = np.maximum(det_size[:, None], track_size[None, :])
         gate = self.config.gate_px + size * (0.5 + 0.25 * missed[None, :])
-        cost[cost > gate] = np.inf
-        rows_any = np.flatnonzero(np.isfinite(cost).any(axis=1))
-        cols_any = np.flatnonzero(np.isfinite(cost).any(axis=0))
-        matches: list[tuple[int, Track]] = []
-        if rows_any.size:
-            sub = cost[np.ix_(rows_any, cols_any)]
-            rows, cols = linear_sum_assignment(np.where(np.isfinite(sub), sub, 1e9))
-            matches = [
-                (int(rows_any[r]), tracks[int(cols_any[c])])
-                for r, c in zip(rows, cols, strict=True)
-                if np.isfinite(sub[r, c])
-            ]
-        matched_rows = {r for r, _ in matches}
+        allowed = cost <= gate
+        if allowed.sum(axis=0).max() <= 1 and allowed.sum(axis=1).max() <= 1:
+            # No detection or track has a rival: every allowed pair is the best assignment.
+            rows, cols = np.nonzero(allowed)
+        else:
+            rows, cols = linear_sum_assignment(np.where(allowed, cost, 1e9))
+            keep = allowed[rows, cols]
+            rows, cols = rows[keep], cols[keep]
+        matches = [(int(r), tracks[int(c)]) for r, c in zip(rows, cols, strict=True)]
+        matched_rows = set(rows.tolist())
         return matches, [i for i in range(len(detections)) if i not in matched_rows]
 
     def _split_merged(

@@ -2,10 +2,8 @@
 
 from __future__ import annotations
 
+import math
 from collections.abc import Sequence
-from functools import lru_cache
-
-import numpy as np
 
 
 def fit_velocity(
@@ -20,33 +18,31 @@ def fit_velocity(
     such jump tilts a least-squares line; the median of pairwise slopes stays
     put until nearly three samples in ten are off.
     """
-    count = len(times)
-    if count < 2:
-        return (0.0, 0.0)
-    t = np.asarray(times, dtype=np.float64)
-    xy = np.asarray(points, dtype=np.float64)
-    first, second = _pairs(count)
-    elapsed = t[second] - t[first]
-    slopes = xy[second] - xy[first]
-    usable = elapsed > 0.0
-    if not usable.all():
-        if not usable.any():
-            return (0.0, 0.0)
-        slopes, elapsed = slopes[usable], elapsed[usable]
-    slopes /= elapsed[:, None]
-    # A sort and the middle row: np.median costs more than the fit on arrays this small.
-    slopes.sort(axis=0)
-    middle = len(slopes) // 2
-    median = slopes[middle] if len(slopes) % 2 else (slopes[middle - 1] + slopes[middle]) / 2
-    return (float(median[0]), float(median[1]))
+    # Plain Python: a track has at most a dozen samples (66 pairs), where NumPy's
+    # per-call overhead costs more than the arithmetic, and more still on a camera
+    # whose code has gone cold between frames.
+    slopes_x: list[float] = []
+    slopes_y: list[float] = []
+    for i in range(len(times) - 1):
+        t0, (x0, y0) = times[i], points[i]
+        for j in range(i + 1, len(times)):
+            elapsed = times[j] - t0
+            if elapsed > 0.0:
+                x1, y1 = points[j]
+                slopes_x.append((x1 - x0) / elapsed)
+                slopes_y.append((y1 - y0) / elapsed)
+    return (_median(slopes_x), _median(slopes_y))
 
 
-@lru_cache(maxsize=64)
-def _pairs(count: int) -> tuple[np.ndarray, np.ndarray]:
-    """Index pairs (i < j) of ``count`` samples."""
-    first, second = np.triu_indices(count, 1)
-    return first, second
+def _median(values: list[float]) -> float:
+    if not values:
+        return 0.0
+    values.sort()
+    middle = len(values) // 2
+    if len(values) % 2:
+        return float(values[middle])
+    return float((values[middle - 1] + values[middle]) / 2)
 
 
 def speed(velocity: tuple[float, float]) -> float:
-    return float(np.hypot(*velocity))
+    return math.hypot(*velocity)

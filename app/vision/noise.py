@@ -13,8 +13,8 @@ fewer than half the pixels move, so moving objects barely shift the estimate.
 from __future__ import annotations
 
 import numpy as np
-from numba import njit
 
+from app.vision.compiled import compiled
 from app.vision.types import GrayImage
 
 HALF_NORMAL_MEDIAN = 0.6745
@@ -25,7 +25,7 @@ def noise_sigma(difference: GrayImage) -> float:
     return max(0.0, _median_level(np.ascontiguousarray(difference))) / HALF_NORMAL_MEDIAN
 
 
-@njit(cache=True, nogil=True)
+@compiled
 def _median_level(difference: GrayImage) -> float:
     """The median grey level, interpolated inside its bin (integer levels would round a
     clean camera's noise to exactly 0 or 1), of every other row and column: a quarter

@@ -1,3 +1,8 @@
+import os
+import subprocess
+import sys
+from pathlib import Path
+
 import numpy as np
 import pytest
 
@@ -112,3 +117,35 @@ def test_reset_forgets_the_scene():
         method.apply(textured_background(4))
     method.reset()
     assert not method.apply(textured_background(5)).mask.any()
+
+
+def test_adaptive_works_where_no_cache_folder_is_writable(tmp_path):
+    # A read-only install with no writable home: Numba finds no folder for its cache.
+    # The model must still run (compiled in the process), not fail to import.
+    (tmp_path / "nowhere.py").write_text(
+        "class Nowhere:\n"
+        "    @classmethod\n"
+        "    def from_function(cls, function, source_path):\n"
+        "        return None\n"
+    )
+    script = (
+        "import numpy as np\n"
+        "from app.vision.motion.adaptive_background import AdaptiveBackground\n"
+        "method = AdaptiveBackground()\n"
+        "still = np.full((48, 64), 80, np.uint8)\n"
+        "for _ in range(5):\n"
+        "    method.apply(still)\n"
+        "moved = still.copy()\n"
+        "moved[10:30, 10:30] = 220\n"
+        "print(int(method.apply(moved).mask[20, 20]))\n"
+    )
+    env = {
+        **os.environ,
+        "PYTHONPATH": os.pathsep.join([str(tmp_path), str(Path.cwd())]),
+        "NUMBA_CACHE_LOCATOR_CLASSES": "nowhere.Nowhere",
+    }
+    run = subprocess.run(
+        [sys.executable, "-c", script], env=env, capture_output=True, text=True, timeout=120
+    )
+    assert run.returncode == 0, run.stderr
+    assert run.stdout.strip() == "255"

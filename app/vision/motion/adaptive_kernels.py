@@ -12,7 +12,7 @@ Rounding is OpenCV's (``saturate_cast``: to nearest, halves to even), so a
 threshold means here what it means in the rest of the engine. The kernels
 release the GIL: cameras that share a process run them side by side.
 Compiled code is cached beside this file (or in the user's cache when that
-is read-only), so only the first run on a machine compiles.
+is read-only), so only the first run on a machine compiles (a second or two).
 """
 
 from __future__ import annotations
@@ -20,10 +20,8 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
+from app.vision.compiled import compiled
 from app.vision.types import FloatImage, GrayImage, Mask
-
-compiled = njit(cache=True, nogil=True)
-"""How every kernel here is compiled: cached on disk, without the GIL."""
 
 
 @njit(inline="always")

@@ -61,15 +61,15 @@ class Detection:
         # Built directly: dataclasses.replace costs several times more, on every
         # object of every frame.
         return Detection(
-            self.box,
-            self.centroid,
-            self.area,
-            track_id,
-            distance_px,
-            speed_px_s,
-            self.ground_xy_m,
-            self.range_m,
-            self.speed_m_s,
+            box=self.box,
+            centroid=self.centroid,
+            area=self.area,
+            track_id=track_id,
+            distance_px=distance_px,
+            speed_px_s=speed_px_s,
+            ground_xy_m=self.ground_xy_m,
+            range_m=self.range_m,
+            speed_m_s=self.speed_m_s,
         )
 
     def with_ground(

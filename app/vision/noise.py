@@ -21,7 +21,9 @@ HALF_NORMAL_MEDIAN = 0.6745
 
 
 def noise_sigma(difference: GrayImage) -> float:
-    """Robust noise standard deviation of an absolute difference image."""
+    """Robust noise standard deviation of an absolute difference image (8-bit)."""
+    if difference.dtype != np.uint8:
+        raise ValueError(f"needs an 8-bit difference image, not {difference.dtype}")
     return max(0.0, _median_level(np.ascontiguousarray(difference))) / HALF_NORMAL_MEDIAN
 
 

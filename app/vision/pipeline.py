@@ -131,10 +131,12 @@ class Pipeline:
         small = clock("enhance", self.enhance, small)
         motion: MotionResult = clock("segment", self.method.apply, small)
         mask = clock("zones", self.zones, motion.mask)
-        blobs: list[Detection] = []
-        if cv2.countNonZero(mask):  # Most frames of a quiet scene: nothing to clean or measure.
+        if cv2.countNonZero(mask):
             mask = clock("morphology", self.morphology, mask)
             blobs = clock("blobs", self.blobs, mask, scale)
+        else:  # Most frames of a quiet scene: nothing to clean or measure.
+            blobs = []
+            clock.skipped("morphology", "blobs")
         detections = clock("track", self.tracker.update, blobs, time_s)
         if self.ground is not None:
             detections = clock("calibrate", self.ground.update, detections, time_s)
@@ -172,3 +174,9 @@ class _StageClock:
         result = fn(*args, **kwargs)
         self.timings[stage].append(time.perf_counter() - start)
         return result
+
+    def skipped(self, *stages: str) -> None:
+        """Stages that had nothing to do this frame cost it nothing: every stage keeps
+        one sample per frame, so a frame's stages can be added up."""
+        for stage in stages:
+            self.timings[stage].append(0.0)

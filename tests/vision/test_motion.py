@@ -100,15 +100,35 @@ def test_adaptive_keeps_a_slow_uniform_object_that_frame_difference_loses():
     assert not d.mask[inside].any()
 
 
-def test_adaptive_absorbs_an_object_that_stops():
+@pytest.mark.parametrize("noise", [0.0, 1.5])
+def test_adaptive_absorbs_an_object_that_stops(noise):
+    # With camera noise too: pixels that get a grey level darker are not "changing"
+    # (a wrap-round in unsigned arithmetic once made half of every noisy frame so,
+    # and a stopped object was never absorbed).
+    rng = np.random.default_rng(7)
     method = AdaptiveBackground(absorb_after=15)
     background = textured_background(3)
+
+    def seen(frame):
+        noisy = frame + rng.normal(0.0, noise, frame.shape)
+        return np.clip(noisy, 0, 255).astype(np.uint8)
+
     for _ in range(10):
-        method.apply(background)
+        method.apply(seen(background))
+    for x in range(20, 50, 3):  # It drives in, then parks.
+        assert method.apply(seen(with_square(background, x, 50))).mask.any()
     parked = with_square(background, 50, 50)
-    for _ in range(40):
-        result = method.apply(parked)
-    assert not result.mask.any()
+    results = [method.apply(seen(parked)) for _ in range(60)]
+    assert results[0].mask.any()
+    assert not any(r.mask.any() for r in results[-10:])
+
+
+def test_adaptive_refuses_frames_that_are_not_8_bit_grey():
+    method = AdaptiveBackground()
+    with pytest.raises(ValueError, match="8-bit grey"):
+        method.apply(np.zeros(SIZE, np.uint16))
+    with pytest.raises(ValueError, match="8-bit grey"):
+        method.apply(np.zeros((*SIZE, 3), np.uint8))
 
 
 def test_reset_forgets_the_scene():

@@ -68,7 +68,7 @@ GAIN_GRID = 4
 
 
 class _Buffers:
-    """8-bit images that live within one frame, kept from frame to frame."""
+    """8-bit working images, kept from frame to frame rather than allocated afresh."""
 
     def __init__(self, shape: tuple[int, ...]) -> None:
         self.main = np.empty(shape, np.uint8)
@@ -136,6 +136,9 @@ class AdaptiveBackground(MotionMethod):
         self._frame_index = 0
 
     def apply(self, gray: GrayImage) -> MotionResult:
+        if gray.dtype != np.uint8 or gray.ndim != 2:
+            # The compiled steps index by grey level and trust the type they are given.
+            raise ValueError(f"needs an 8-bit grey frame, not {gray.dtype} of shape {gray.shape}")
         gray = np.ascontiguousarray(gray)
         if self._background is None or self._background.shape != gray.shape:
             return self._learn(gray)
@@ -160,20 +163,18 @@ class AdaptiveBackground(MotionMethod):
             difference,
         )
         self.noise.update(difference)
-        threshold = self.threshold
+        threshold = float(self.threshold)  # One compiled signature, whatever was set.
 
         k = self.noise.k
         noise_deviation = MEAN_ABS_NOISE * (self.noise.sigma or 0.0)
         raw = buffers.raw if buffers.raw is not self._previous_raw else buffers.spare_raw
-        # Rounded down (the -0.5): "difference > per_pixel" in grey levels then
-        # means what it means for the float threshold.
         moving = kernels.threshold_and_limits(
             difference,
             self._deviation,
             threshold,
             noise_deviation,
             k,
-            threshold - k * noise_deviation - 0.5,
+            threshold - k * noise_deviation,
             raw,
             buffers.limit,
         )

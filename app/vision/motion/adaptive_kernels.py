@@ -8,11 +8,16 @@ some forty whole-image OpenCV calls, most of it in fetching images and code
 that had gone cold while the camera waited for its next frame. The
 neighbourhood steps (dilate, erode, connected regions) stay with OpenCV.
 
-Rounding is OpenCV's (``saturate_cast``: to nearest, halves to even), so a
-threshold means here what it means in the rest of the engine. The kernels
-release the GIL: cameras that share a process run them side by side.
-Compiled code is cached beside this file (or in the user's cache when that
-is read-only), so only the first run on a machine compiles (a second or two).
+A grey level is compared with a threshold as OpenCV's ``threshold`` does
+(``difference > floor(threshold)``, which for whole grey levels is
+``difference > threshold``), and models are rounded to grey levels as its
+``saturate_cast`` rounds (to nearest, halves to even); grey levels are
+signed 64-bit inside the loops, so a difference never wraps round. Frames
+must be 8-bit grey (the callers check). The kernels release the GIL:
+cameras that share a process run them side by side. Compiled code is cached
+beside this file, or in the user's cache where that is read-only, so only
+the first run on a machine compiles (a second or two); where neither is
+writable, each process compiles afresh (``app.vision.compiled``).
 """
 
 from __future__ import annotations
@@ -25,10 +30,18 @@ from app.vision.types import FloatImage, GrayImage, Mask
 
 
 @njit(inline="always")
-def _to_u8(value: float) -> int:
+def _to_u8(value: float) -> np.int64:
     """``saturate_cast<uchar>``: nearest (halves to even), clamped to 0..255."""
-    level = int(np.rint(value))
-    return 0 if level < 0 else (255 if level > 255 else level)
+    level = np.int64(np.rint(value))
+    return np.int64(0) if level < 0 else (np.int64(255) if level > 255 else level)
+
+
+@njit(inline="always")
+def _floor_u8(value: float) -> np.int64:
+    """The largest grey level not above ``value`` (0..255): "difference > this" in whole
+    grey levels is "difference > value"."""
+    level = np.int64(np.floor(value))
+    return np.int64(0) if level < 0 else (np.int64(255) if level > 255 else level)
 
 
 @compiled
@@ -76,7 +89,7 @@ def compare_with_modes(
     rows, cols = gray.shape
     for y in range(rows):
         for x in range(cols):
-            value = int(gray[y, x])
+            value = np.int64(gray[y, x])  # Signed: uint8 minus uint8 would wrap.
             main = abs(value - _to_u8(background[y, x] * gain))
             other = abs(value - _to_u8(alternate[y, x] * gain))
             main_out[y, x] = main
@@ -101,7 +114,7 @@ def threshold_and_limits(
     """Raw motion (difference above the plain threshold), and each pixel's own threshold
     before the neighbourhood maximum: ``k`` x max(deviation, noise) + ``offset``.
     Returns how many pixels moved."""
-    level = int(np.floor(threshold))  # cv2.threshold on 8 bits compares with the floor.
+    level = np.int64(np.floor(threshold))  # cv2.threshold on 8 bits compares with the floor.
     moving = 0
     rows, cols = difference.shape
     for y in range(rows):
@@ -112,7 +125,7 @@ def threshold_and_limits(
             else:
                 raw_out[y, x] = 0
             spread = max(deviation[y, x], noise_deviation)
-            limit_out[y, x] = _to_u8(abs(spread * k + offset))
+            limit_out[y, x] = _floor_u8(spread * k + offset)
     return moving
 
 
@@ -159,7 +172,7 @@ def learn(
     (``lowest_in_out``) and 0 where moving (``highest_in_out``).
     """
     # Branch-free (selects, & and | rather than if, and, or) so the loop vectorises.
-    level = int(np.floor(threshold))
+    level = np.int64(np.floor(threshold))
     lr = np.float32(learning_rate)
     mr = np.float32(mode_rate)
     dr = np.float32(deviation_rate)
@@ -173,7 +186,7 @@ def learn(
             shade = np.float32(value)
             nearer = difference[y, x]
             limit = per_pixel[y, x]
-            weak = _to_u8(abs(limit * weak_fraction - 0.5))
+            weak = _floor_u8(limit * weak_fraction)
             is_moving = (grown_strong[y, x] != 0) & (nearer > weak)
             still = ~is_moving
             # Variability: from still pixels and from flips of the plain threshold.
@@ -204,7 +217,8 @@ def learn(
             unmatched = ~established & (min(main_difference, other_difference) > level)
             alternate[y, x] = shade if unmatched else other
             weight[y, x] = seed if unmatched else new_weight
-            changing_out[y, x] = 255 if abs(int(value) - int(previous_gray[y, x])) > level else 0
+            change = abs(np.int64(value) - np.int64(previous_gray[y, x]))
+            changing_out[y, x] = 255 if change > level else 0
             rounded = _to_u8(model)
             mask_out[y, x] = 255 if is_moving else 0
             lowest_in_out[y, x] = 255 if is_moving else rounded
@@ -230,12 +244,12 @@ def absorb_ghosts(
     rows, cols = gray.shape
     for y in range(rows):
         for x in range(cols):
-            value = int(gray[y, x])
+            value = np.int64(gray[y, x])
             ghost = (
                 (mask[y, x] != 0)
                 & (changing[y, x] == 0)
-                & (value >= int(lowest[y, x]) - margin)
-                & (value <= int(highest[y, x]) + margin)
+                & (value >= np.int64(lowest[y, x]) - margin)
+                & (value <= np.int64(highest[y, x]) + margin)
             )
             background[y, x] = np.float32(value) if ghost else background[y, x]
 

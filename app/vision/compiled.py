@@ -1,24 +1,45 @@
-"""How the engine compiles its per-pixel loops (Numba)."""
+"""How the engine compiles its per-pixel loops (Numba), and when.
+
+A kernel is compiled (or loaded from Numba's on-disk cache) on its first
+call, and Numba itself is imported then: a process that never detects (the
+web server, a CLI command) does without it, about 130 MB and 0.3 s.
+"""
 
 from __future__ import annotations
 
+import functools
 import logging
+import threading
 from collections.abc import Callable
-from typing import Any, TypeVar
-
-from numba import njit
-from numba.core.dispatcher import Dispatcher
+from typing import Any, TypeVar, cast
 
 log = logging.getLogger("vigil.vision")
 
 Kernel = TypeVar("Kernel", bound=Callable[..., Any])
 
 
-def compiled(kernel: Kernel) -> Dispatcher[Kernel]:
-    """Compile without the GIL, cached on disk; where no cache folder is writable
-    (read-only install, no home), compile afresh in each process instead of failing."""
+def compiled(kernel: Kernel) -> Kernel:
+    """``kernel`` compiled on first call, without the GIL, cached on disk."""
+    compiling = threading.Lock()
+    ready: list[Callable[..., Any]] = []
+
+    @functools.wraps(kernel)
+    def run(*args: Any) -> Any:
+        if not ready:
+            with compiling:
+                if not ready:
+                    ready.append(_compile(kernel))
+        return ready[0](*args)
+
+    return cast(Kernel, run)
+
+
+def _compile(kernel: Callable[..., Any]) -> Callable[..., Any]:
+    from numba import njit  # Here: only processes that run a kernel load it.
+
     try:
         return njit(cache=True, nogil=True)(kernel)
-    except RuntimeError as exc:  # Numba: "cannot cache function ...: no locator available".
+    except RuntimeError as exc:  # "cannot cache function ...: no locator available".
+        # A read-only install with no writable home: compile in each process instead.
         log.warning("%s; compiling in each process (set NUMBA_CACHE_DIR to keep it)", exc)
         return njit(nogil=True)(kernel)

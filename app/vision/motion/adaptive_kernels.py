@@ -10,9 +10,10 @@ neighbourhood steps (dilate, erode, connected regions) stay with OpenCV.
 
 A grey level is compared with a threshold as OpenCV's ``threshold`` does
 (``difference > floor(threshold)``, which for whole grey levels is
-``difference > threshold``), and models are rounded to grey levels as its
-``saturate_cast`` rounds (to nearest, halves to even); grey levels are
-signed 64-bit inside the loops, so a difference never wraps round. Frames
+``difference > threshold``), and models (never negative) are rounded to grey
+levels as its ``saturate_cast`` rounds (to nearest, halves to even, at most
+255); grey levels are signed 64-bit inside the loops, so a difference never
+wraps round. Frames
 must be 8-bit grey (the callers check). The kernels release the GIL:
 cameras that share a process run them side by side. Compiled code is cached
 beside this file, or in the user's cache where that is read-only, so only
@@ -23,25 +24,11 @@ writable, each process compiles afresh (``app.vision.compiled``).
 from __future__ import annotations
 
 import numpy as np
-from numba import njit
 
 from app.vision.compiled import compiled
 from app.vision.types import FloatImage, GrayImage, Mask
 
-
-@njit(inline="always")
-def _to_u8(value: float) -> np.int64:
-    """``saturate_cast<uchar>``: nearest (halves to even), clamped to 0..255."""
-    level = np.int64(np.rint(value))
-    return np.int64(0) if level < 0 else (np.int64(255) if level > 255 else level)
-
-
-@njit(inline="always")
-def _floor_u8(value: float) -> np.int64:
-    """The largest grey level not above ``value`` (0..255): "difference > this" in whole
-    grey levels is "difference > value"."""
-    level = np.int64(np.floor(value))
-    return np.int64(0) if level < 0 else (np.int64(255) if level > 255 else level)
+MAX_GREY = np.int64(255)
 
 
 @compiled
@@ -90,8 +77,8 @@ def compare_with_modes(
     for y in range(rows):
         for x in range(cols):
             value = np.int64(gray[y, x])  # Signed: uint8 minus uint8 would wrap.
-            main = abs(value - _to_u8(background[y, x] * gain))
-            other = abs(value - _to_u8(alternate[y, x] * gain))
+            main = abs(value - min(np.int64(np.rint(background[y, x] * gain)), MAX_GREY))
+            other = abs(value - min(np.int64(np.rint(alternate[y, x] * gain)), MAX_GREY))
             main_out[y, x] = main
             alternate_out[y, x] = other
             nearer = main
@@ -125,7 +112,7 @@ def threshold_and_limits(
             else:
                 raw_out[y, x] = 0
             spread = max(deviation[y, x], noise_deviation)
-            limit_out[y, x] = _floor_u8(spread * k + offset)
+            limit_out[y, x] = min(np.int64(np.floor(spread * k + offset)), MAX_GREY)
     return moving
 
 
@@ -186,7 +173,7 @@ def learn(
             shade = np.float32(value)
             nearer = difference[y, x]
             limit = per_pixel[y, x]
-            weak = _floor_u8(limit * weak_fraction)
+            weak = np.int64(np.floor(limit * weak_fraction))
             is_moving = (grown_strong[y, x] != 0) & (nearer > weak)
             still = ~is_moving
             # Variability: from still pixels and from flips of the plain threshold.
@@ -219,7 +206,7 @@ def learn(
             weight[y, x] = seed if unmatched else new_weight
             change = abs(np.int64(value) - np.int64(previous_gray[y, x]))
             changing_out[y, x] = 255 if change > level else 0
-            rounded = _to_u8(model)
+            rounded = min(np.int64(np.rint(model)), MAX_GREY)
             mask_out[y, x] = 255 if is_moving else 0
             lowest_in_out[y, x] = 255 if is_moving else rounded
             highest_in_out[y, x] = 0 if is_moving else rounded

@@ -19,6 +19,8 @@ nothing is drawn on it).
     idle (live, not activated) and activated, each unwatched and with one
     viewer, with OpenCV's own thread count and with cv2.setNumThreads(1);
     and the Motion daemon (/usr/bin/motion) on the same clip in the same run.
+(a2) CPU per frame at load: 8 activated cameras in one worker process (OpenCV
+    1 thread), and Motion with the same 8 cameras in one daemon.
 (b) The largest number N of activated cameras for which every camera runs
     detection on >= 24 frames per second over the measured window, with the
     cameras as threads of one process and spread over two processes
@@ -70,6 +72,9 @@ CLIP_PHASES = 4
 camera i plays copy i % CLIP_PHASES, so cameras do not all see the same moment (and alarm
 together). A single camera plays copy 0, as Motion does."""
 SUSTAINED_FPS = 24.0
+AT_LOAD_CAMERAS = 8
+"""Cameras of section (a2): several sharing one process, as on a machine with real work
+(a lone camera pays for waking from idle on every frame)."""
 MOTION = Path("/usr/bin/motion")
 GUESS_SHARE = 0.8
 """A search starts at the cameras this share of the CPUs left free would carry."""
@@ -473,25 +478,37 @@ def motion_version() -> str:
     return found.group(1) if found else "?"
 
 
-def motion_config(clip: Path, folder: Path) -> Path:
-    """The config of NOTES.md: the clip as a network camera, detection on, no outputs."""
+def motion_config(clips: Sequence[Path], folder: Path) -> Path:
+    """The config of NOTES.md: each clip a network camera, detection on, no outputs. One
+    camera is configured in the main file, as NOTES.md has it; more, one file each."""
+    cameras = [
+        [
+            f"netcam_url file://{clip}",
+            f"netcam_params capture_rate={FPS:g}",
+            f"width {SIZE[0]}",
+            f"height {SIZE[1]}",
+            f"framerate {FPS:g}",
+            "threshold 1500",
+            "despeckle_filter EedDl",
+            "picture_output off",
+            "movie_output off",
+            f"target_dir {folder / 'out'}",
+        ]
+        for clip in clips
+    ]
     lines = [
         "daemon off",
         f"log_file {folder / 'motion.log'}",
         "log_level 6",
-        f"target_dir {folder / 'out'}",
-        f"netcam_url file://{clip}",
-        f"netcam_params capture_rate={FPS:g}",
-        f"width {SIZE[0]}",
-        f"height {SIZE[1]}",
-        f"framerate {FPS:g}",
-        "threshold 1500",
-        "despeckle_filter EedDl",
-        "picture_output off",
-        "movie_output off",
         "webcontrol_port 0",
         "stream_port 0",
     ]
+    if len(cameras) == 1:
+        lines += cameras[0]
+    for index, camera in enumerate(cameras if len(cameras) > 1 else []):
+        path = folder / f"motion-camera-{index + 1}.conf"
+        path.write_text("\n".join([*camera, f"camera_id {index + 1}", "stream_port 0"]) + "\n")
+        lines.append(f"camera {path}")
     (folder / "out").mkdir(exist_ok=True)
     path = folder / "motion.conf"
     path.write_text("\n".join(lines) + "\n")
@@ -501,13 +518,14 @@ def motion_config(clip: Path, folder: Path) -> Path:
 @dataclass(frozen=True)
 class MotionRun:
     ms_per_frame: list[float]
-    """Per window: CPU ms / (window seconds x FPS)."""
+    """Per window: CPU ms / (window seconds x FPS x cameras)."""
     log_problems: list[str]
 
 
-def measure_motion(clip: Path, folder: Path, windows: Windows) -> MotionRun:
-    """Motion's CPU over each window, frames taken as window x FPS (it paces itself)."""
-    config = motion_config(clip, folder)
+def measure_motion(clips: Sequence[Path], folder: Path, windows: Windows) -> MotionRun:
+    """Motion's CPU over each window with a camera per clip, frames taken as window x FPS
+    per camera (it paces itself)."""
+    config = motion_config(clips, folder)
     proc = subprocess.Popen(
         [str(MOTION), "-n", "-c", str(config)],
         stdout=subprocess.DEVNULL,
@@ -527,7 +545,8 @@ def measure_motion(clip: Path, folder: Path, windows: Windows) -> MotionRun:
         except subprocess.TimeoutExpired:
             proc.kill()
             proc.wait()
-    per_frame = [1000 * (b - a) / (windows.length * FPS) for a, b in itertools.pairwise(marks)]
+    frames = windows.length * FPS * len(clips)
+    per_frame = [1000 * (b - a) / frames for a, b in itertools.pairwise(marks)]
     log = folder / "motion.log"
     text = log.read_text(errors="replace") if log.exists() else ""
     problems = [line for line in text.splitlines() if re.search(r"\[(ERR|WRN|ALR|CRT|EMG)\]", line)]
@@ -583,18 +602,65 @@ class CpuFigures:
     """Activated unwatched ms / activated watched ms: the share of cameras a viewer leaves."""
 
 
-def measure_cpu(args: argparse.Namespace, clip: Path, tmp: Path) -> CpuFigures:
-    """Section (a); returns the figures that seed section (b)'s search."""
+def measure_cpu(args: argparse.Namespace, clips: Sequence[Path], tmp: Path) -> CpuFigures:
+    """Sections (a) and (a2); returns the figures that seed section (b)'s search."""
     windows = Windows(args.warmup, args.cpu_window, args.repeat)
-    paced = measure_paced(clip, tmp, windows)
+    paced = measure_paced(clips[0], tmp, windows)
     motion: MotionRun | None = None
     if MOTION.is_file():
-        motion = measure_motion(clip, tmp, Windows(args.warmup + 1, windows.length, windows.count))
+        motion = measure_motion(
+            clips[:1], tmp, Windows(args.warmup + 1, windows.length, windows.count)
+        )
     print_paced(args, paced, motion)
+    measure_at_load(args, clips, tmp, windows)
     one = {row.trial.mode: row for row in paced if row.cv_threads == 1}
     return CpuFigures(
         capacity(one[ACTIVE].trial, args.max_cameras), one[ACTIVE].ms / one[ACTIVE_WATCHED].ms
     )
+
+
+def measure_at_load(
+    args: argparse.Namespace, clips: Sequence[Path], tmp: Path, windows: Windows
+) -> None:
+    """Section (a2): CPU per frame with AT_LOAD_CAMERAS activated cameras sharing one
+    process (Vigil: one worker process, OpenCV 1 thread; Motion: one daemon with a camera
+    per clip), camera i playing clips[i % len(clips)] in both."""
+    with worker_group(1, 1) as group:
+        trial = run_trial(group, clips, tmp, AT_LOAD_CAMERAS, ACTIVE, windows)
+    vigil_ms = median(trial.ms_per_frame())
+    motion: MotionRun | None = None
+    rows: list[list[Cell]] = [
+        [
+            f"Vigil, activated, unwatched, {AT_LOAD_CAMERAS} cameras in 1 process",
+            fmt(median_fps(trial.processed_fps), 1),
+            fmt(vigil_ms, 2),
+        ]
+    ]
+    if MOTION.is_file():
+        played = [clips[i % len(clips)] for i in range(AT_LOAD_CAMERAS)]
+        motion = measure_motion(
+            played, tmp, Windows(args.warmup + 1, windows.length, windows.count)
+        )
+        rows.append(
+            [
+                f"Motion {motion_version()}, {AT_LOAD_CAMERAS} cameras",
+                f"{FPS:g}",
+                fmt(median(motion.ms_per_frame), 2),
+            ]
+        )
+    print_table(
+        f"(a2) CPU per frame at load: {AT_LOAD_CAMERAS} cameras in one process (median of "
+        f"{args.repeat} windows of {args.cpu_window:g} s after a {args.warmup:g} s warm-up)",
+        ["program", "detect fps", "ms CPU/frame"],
+        rows,
+        note="    ms CPU/frame: the process's CPU / frames (Motion's: window x FPS x cameras)",
+    )
+    if motion is None:
+        return
+    ratio = vigil_ms / median(motion.ms_per_frame)
+    print(f"Vigil / Motion at load, CPU per frame: {fmt(ratio, 2)}")
+    if motion.log_problems:
+        print("Motion log errors/warnings:", *motion.log_problems[:5], sep="\n    ")
 
 
 def print_paced(args: argparse.Namespace, paced: list[PacedRow], motion: MotionRun | None) -> None:
@@ -874,7 +940,7 @@ def main(argv: Sequence[str] | None = None) -> None:
     with tempfile.TemporaryDirectory(prefix="vigil-cameras-") as tmp:
         clips, description = make_clips(args, Path(tmp))
         print(f"camera: {description}")
-        cpu = measure_cpu(args, clips[0], Path(tmp))
+        cpu = measure_cpu(args, clips, Path(tmp))
         measure_cameras(args, clips, Path(tmp), cpu)
     print(f"\ndone in {time.perf_counter() - started:.0f} s")
 

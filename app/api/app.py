@@ -34,7 +34,6 @@ from app.core.config import Settings
 
 PACKAGE_DIR = Path(vigil_package.__file__).resolve().parent
 STATIC_DIR = PACKAGE_DIR / "static"
-TEMPLATES_DIR = PACKAGE_DIR / "templates"
 
 
 def create_app(settings: Settings | None = None) -> FastAPI:
@@ -82,8 +81,9 @@ class BodyTooLargeError(Exception):
 class BodyLimit:
     """Refuse request bodies over their limit, so nothing past it is read or spooled to disk.
 
-    Uploads (``POST /api/analyses``) may be ``upload_limit`` bytes, any other body
-    (JSON) ``other_limit``. A declared Content-Length over the limit is refused before a
+    Uploads (``POST /api/analyses``) may be ``upload_limit`` bytes, a login
+    ``auth.MAX_LOGIN_BODY`` (the route is open to all), any other body (JSON)
+    ``other_limit``. A declared Content-Length over the limit is refused before a
     byte is read; a body without one (chunked) is counted as it arrives and cut off at
     the limit, the app's answer to the aborted read replaced by the 413.
     """
@@ -93,20 +93,23 @@ class BodyLimit:
 
     def __init__(self, app: ASGIApp, upload_limit: int, other_limit: int = 1 << 20) -> None:
         self.app = app
-        self.upload_limit = upload_limit
-        self.other_limit = other_limit
+        self.limits = {
+            "/api/analyses": (
+                upload_limit + self.SLACK,
+                f"upload larger than {upload_limit // (1 << 20)} MB",
+            ),
+            "/api/login": (auth.MAX_LOGIN_BODY, "a login is a password, not a file"),
+        }
+        self.other = (other_limit, f"request body larger than {other_limit // 1024} KB")
 
     async def __call__(self, scope: Scope, receive: Receive, send: Send) -> None:
         if scope["type"] != "http" or scope["method"] in ("GET", "HEAD", "OPTIONS"):
             await self.app(scope, receive, send)
             return
-        upload = scope["path"].rstrip("/") == "/api/analyses"
-        limit = self.upload_limit + self.SLACK if upload else self.other_limit
+        limit, detail = self.limits.get(scope["path"].rstrip("/"), self.other)
 
         def refusal() -> tuple[Message, Message]:
-            if upload:
-                return _json_refusal(f"upload larger than {self.upload_limit // (1 << 20)} MB")
-            return _json_refusal(f"request body larger than {self.other_limit // 1024} KB")
+            return _json_refusal(detail)
 
         length = dict(scope.get("headers", [])).get(b"content-length", b"")
         if length.isdigit() and int(length) > limit:

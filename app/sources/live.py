@@ -159,7 +159,6 @@ class FileSource:
         if not path.is_file():
             raise SourceError(f"file not found: {path}")
         self.path = path
-        self._packets = False
         self._capture = self._open()
         self.fps = frame_rate(self._capture)
         self.description = f"file {path.name} at {self.fps:g} fps"

@@ -255,8 +255,12 @@ function setUpZones(card, id) {
       }
     }
   };
+  let shown = null;  // The mask last drawn: status messages repeat it every second.
   editor.show = (mask) => {
     if (card.classList.contains("editing-zones")) return;  // Not while someone draws.
+    const text = JSON.stringify(mask || []);
+    if (text === shown) return;
+    shown = text;
     editor.zones = (mask || []).map((zone) => zone.map(([x, y]) => [x, y]));
     draw();
   };
@@ -268,10 +272,11 @@ function setUpZones(card, id) {
     card.classList.remove("editing-zones");
     $(".zone-tools", card).hidden = true;
     editor.draft = [];
+    shown = null;  // The drawing may differ from the saved mask: draw that again.
     editor.show(state.cameras.get(id)?.mask);
   };
   img.addEventListener("load", place);
-  window.addEventListener("resize", draw);
+  new ResizeObserver(draw).observe(picture);  // Gone with the card, unlike a window listener.
   layer.addEventListener("click", (event) => {
     const box = layer.getBoundingClientRect();
     const round = (value) => Math.round(Math.min(1, Math.max(0, value)) * 1000) / 1000;

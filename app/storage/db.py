@@ -159,6 +159,8 @@ class Database:
         return [_camera(r) for r in self._query("SELECT * FROM cameras ORDER BY id")]
 
     def camera(self, camera_id: int) -> dict[str, Any] | None:
+        if not _is_row_id(camera_id):
+            return None
         row = self._query_one("SELECT * FROM cameras WHERE id = ?", (camera_id,))
         return _camera(row) if row else None
 
@@ -276,11 +278,14 @@ class Database:
         return [dict(r) for r in self._query(sql, (*params, limit))]
 
     def snapshot(self, snapshot_id: int) -> dict[str, Any] | None:
+        if not _is_row_id(snapshot_id):
+            return None
         row = self._query_one("SELECT * FROM snapshots WHERE id = ?", (snapshot_id,))
         return dict(row) if row else None
 
     def delete_snapshots(self, ids: Sequence[int]) -> list[dict[str, Any]]:
         """Remove the rows; returns them so the caller can remove the files."""
+        ids = [i for i in ids if _is_row_id(i)]
         if not ids:
             return []
         rows = self.snapshots(ids=ids, limit=len(ids))
@@ -386,3 +391,9 @@ def _analysis(row: sqlite3.Row) -> dict[str, Any]:
     out = dict(row)
     out["options"] = json.loads(out["options"])
     return out
+
+
+def _is_row_id(value: int) -> bool:
+    """Whether SQLite can hold ``value`` (a 64-bit integer): beyond it no row has it, and
+    binding it raises OverflowError."""
+    return -(2**63) <= value < 2**63

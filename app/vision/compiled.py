@@ -4,6 +4,10 @@ A kernel is compiled (or loaded from Numba's on-disk cache) on its first
 call, and Numba itself is imported then: a process that never detects (the
 web server, a CLI command) does without it (about 65 MB and 0.3 s to import;
 one that runs the kernels carries about 130 MB more than before Numba).
+The cache sits beside the source, or in the user's cache folder where that
+is read-only, so only the first run on a machine compiles (a second or
+two); where neither is writable, each process compiles afresh, with a
+warning.
 """
 
 from __future__ import annotations

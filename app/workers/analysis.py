@@ -219,16 +219,26 @@ def exit_reason(code: int, last_stderr: str = "") -> str:
     detail = f": {_one_line(last_stderr, 200)}" if last_stderr.strip() else ""
     if code >= 0:
         return f"the analysis process failed (exit status {code}){detail}"
-    try:
-        sig: signal.Signals | None = signal.Signals(-code)
-    except ValueError:
-        sig = None
-    named = f"signal {-code}, {sig.name}" if sig else f"signal {-code}"
+    sig = _signal(code)
+    named = signal_label(code)
     if sig in CRASH_SIGNALS:
         return f"the decoder crashed ({named}) on this file{detail}"
     if sig == signal.SIGKILL:
         return f"the analysis process was killed ({named}), perhaps for using too much memory"
     return f"the analysis process was stopped ({named})"
+
+
+def signal_label(code: int) -> str:
+    """``signal 11, SIGSEGV`` for a process whose exit code is -11."""
+    sig = _signal(code)
+    return f"signal {-code}, {sig.name}" if sig else f"signal {-code}"
+
+
+def _signal(code: int) -> signal.Signals | None:
+    try:
+        return signal.Signals(-code)
+    except ValueError:
+        return None
 
 
 def _one_line(text: str, limit: int = 300) -> str:

@@ -104,7 +104,7 @@ class CameraWorker:
     def set_active(self, active: bool) -> None:
         with self._lock:
             self._want_active = active
-        self._publish_status(force=True)
+        self._publish_status()
 
     def update(self, **changes: Any) -> None:
         """New settings; the worker applies them before its next frame."""
@@ -386,14 +386,9 @@ class CameraWorker:
             return
         self.db.end_event(event_id, now, event.max_area, sorted(event.track_ids))
         self.bus.publish(
-            {
-                "type": "motion_end",
-                "camera_id": self.camera_id,
-                "event_id": event_id,
-                "ts": now,
-                "duration_s": round(event.end_time_s - event.start_time_s, 3),
-                "max_area": round(event.max_area, 1),
-            }
+            motion_end_message(
+                self.camera_id, event_id, now, event.end_time_s - event.start_time_s, event.max_area
+            )
         )
 
     # Status -------------------------------------------------------------------------------
@@ -407,12 +402,26 @@ class CameraWorker:
         if changed:
             if state in ("error", "reconnecting"):
                 log.warning("camera %s %s: %s", self.camera_id, state, reason)
-            self._publish_status(force=True)
+            self._publish_status()
 
-    def _publish_status(self, force: bool = False) -> None:
+    def _publish_status(self) -> None:
         self._last_status = time.monotonic()
         message = {"type": "status", **self.status()}
         self.bus.publish(message)
+
+
+def motion_end_message(
+    camera_id: int, event_id: int, ts: float, duration_s: float, max_area: float
+) -> dict[str, Any]:
+    """The ``motion_end`` message on /ws: an event of a camera ended at ``ts``."""
+    return {
+        "type": "motion_end",
+        "camera_id": camera_id,
+        "event_id": event_id,
+        "ts": ts,
+        "duration_s": round(duration_s, 3),
+        "max_area": round(max_area, 1),
+    }
 
 
 def _detection(d: Detection) -> dict[str, Any]:

@@ -32,8 +32,9 @@ from app.core.config import Settings
 from app.storage.db import Database
 from app.storage.files import SnapshotStore
 from app.vision.motion.adaptive_background import warm_up
+from app.workers.analysis import signal_label
 from app.workers.bus import EventBus
-from app.workers.camera import CameraWorker
+from app.workers.camera import CameraWorker, motion_end_message
 from app.workers.hub import FrameHub, Kind, Picture, SentFrame
 
 log = logging.getLogger("vigil.cameras")
@@ -160,12 +161,12 @@ def run_cameras(conn: Connection, settings: Settings) -> None:
     logging.basicConfig(level=logging.INFO, format="%(levelname)s %(name)s: %(message)s")
     if settings.opencv_threads:
         cv2.setNumThreads(settings.opencv_threads)
-    threading.Thread(target=warm_up, name="warm-up", daemon=True).start()
     link = _Link(conn)
     db = Database(settings.db_path)
     snapshots = SnapshotStore(settings.snapshots_dir)
     sender = _FrameSender(link)
     workers: dict[int, CameraWorker] = {}
+    warmed = False
 
     def remove(camera_id: int) -> None:
         worker = workers.pop(camera_id, None)
@@ -183,6 +184,11 @@ def run_cameras(conn: Connection, settings: Settings) -> None:
                 return
             if op == "start":
                 row, generation, recovering = args
+                if not warmed:
+                    # Load the detection kernels before this camera is activated, but
+                    # only in a process that has a camera: an idle one stays small.
+                    threading.Thread(target=warm_up, name="warm-up", daemon=True).start()
+                    warmed = True
                 remove(row["id"])
                 worker_link = _WorkerLink(link, generation)
                 if recovering:  # The process before this one died with its events open.
@@ -213,15 +219,12 @@ def run_cameras(conn: Connection, settings: Settings) -> None:
 
 def _end_events(db: Database, link: _WorkerLink, camera_id: int) -> None:
     for event in db.close_open_events(camera_id):
-        end = {
-            "type": "motion_end",
-            "camera_id": camera_id,
-            "event_id": event["id"],
-            "ts": event["ended_at"],
-            "duration_s": round(event["ended_at"] - event["started_at"], 3),
-            "max_area": round(event["max_area"], 1),
-        }
-        link.publish(end)
+        duration_s = event["ended_at"] - event["started_at"]
+        link.publish(
+            motion_end_message(
+                camera_id, event["id"], event["ended_at"], duration_s, event["max_area"]
+            )
+        )
 
 
 def _exit_cleanly(signum: int, frame: Any) -> None:
@@ -423,8 +426,7 @@ class CameraProcess:
 
 def _exit_reason(exitcode: int | None) -> str:
     if exitcode is not None and exitcode < 0:
-        with contextlib.suppress(ValueError):
-            return f"died (signal {-exitcode}, {signal.Signals(-exitcode).name})"
+        return f"died ({signal_label(exitcode)})"
     return f"exited (status {exitcode})"
 
 

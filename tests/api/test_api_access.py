@@ -6,6 +6,7 @@ dashboard in Chromium under the Content-Security-Policy.
 
 from __future__ import annotations
 
+import asyncio
 import base64
 import http.client
 import os
@@ -24,9 +25,9 @@ import pytest
 from websockets.exceptions import ConnectionClosed, InvalidStatus
 from websockets.sync.client import connect
 
-from tests.api.vigil_livekit import Running, read_mjpeg_frames, serve_process
+from app.api.security import Access, PasswordHash
+from tests.api.vigil_livekit import ROOT, Running, read_mjpeg_frames, serve_process
 
-ROOT = Path(__file__).resolve().parents[2]
 PASSWORD = "correct horse"
 
 
@@ -215,6 +216,25 @@ def test_basic_auth_still_works_for_scripts(serve: Callable[..., Running]) -> No
     assert ws_status(server.ws, additional_headers={"Authorization": f"Basic {token}"}) == 101
 
 
+def test_a_script_sending_the_password_each_time_costs_one_scrypt(
+    monkeypatch: pytest.MonkeyPatch,
+) -> None:
+    hashed: list[str] = []
+    verify = PasswordHash.verify
+
+    def counted(self: PasswordHash, password: str) -> bool:
+        hashed.append(password)
+        return verify(self, password)
+
+    monkeypatch.setattr(PasswordHash, "verify", counted)
+    access = Access(PasswordHash.create(PASSWORD), 1.0, 5, 60.0)
+    assert all(asyncio.run(access.verify("10.0.0.1", PASSWORD)) for _ in range(5))
+    assert hashed == [PASSWORD]
+    # A wrong password is hashed (and counted against its sender) every time.
+    assert not any(asyncio.run(access.verify("10.0.0.2", "wrong")) for _ in range(2))
+    assert hashed == [PASSWORD, "wrong", "wrong"]
+
+
 def test_wrong_passwords_are_throttled_per_client_address(serve: Callable[..., Running]) -> None:
     server = serve(password=PASSWORD, login_max_failures=3, login_window_s=3)
     url = f"{server.base}/api/login"
@@ -393,7 +413,6 @@ def test_hash_password_command_and_a_serve_process_with_the_hash(tmp_path: Path)
 def test_login_and_dashboard_in_chromium_under_the_policy(
     serve: Callable[..., Running], page: Any
 ) -> None:
-    page = page
     server = serve(password=PASSWORD, demo_camera=True)
     errors: list[str] = []
     page.on("pageerror", lambda error: errors.append(str(error)))
@@ -424,9 +443,11 @@ def test_login_and_dashboard_in_chromium_under_the_policy(
     page.click("#gallery-filter button[type=submit]")
     page.wait_for_selector("#thumbs figure img", timeout=10000)
     assert page.evaluate("window.__csp") == []
-    assert page.locator("#upload input[name=sensitivity]").evaluate(
-        "e => getComputedStyle(e).width"
-    ) != page.locator("#upload input[type=file]").evaluate("e => getComputedStyle(e).width")
+    # The stylesheet (not an inline style, which the policy refuses) sizes the inputs.
+    width_em = page.locator("#upload input[name=sensitivity]").evaluate(
+        "e => parseFloat(getComputedStyle(e).width) / parseFloat(getComputedStyle(e).fontSize)"
+    )
+    assert width_em == pytest.approx(5.0, abs=0.05)
 
     # The session ends behind the page's back: its next request sends it to /login.
     page.context.clear_cookies()

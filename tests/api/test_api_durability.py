@@ -15,9 +15,14 @@ import psutil
 import pytest
 
 from app.storage import Database, SnapshotStore
-from tests.api.vigil_livekit import Running, WsClient, serve_process, wait_for, write_video
-
-ROOT = Path(__file__).resolve().parents[2]
+from tests.api.vigil_livekit import (
+    Running,
+    WsClient,
+    add_camera,
+    serve_process,
+    wait_for,
+    write_video,
+)
 
 
 def _decodes(data: bytes) -> bool:
@@ -25,12 +30,6 @@ def _decodes(data: bytes) -> bool:
     if data[:2] != b"\xff\xd8" or data[-2:] != b"\xff\xd9":
         return False
     return cv2.imdecode(np.frombuffer(data, np.uint8), cv2.IMREAD_COLOR) is not None
-
-
-def _add_camera(base: str, video: Path) -> int:
-    response = httpx.post(f"{base}/api/cameras", json={"name": "door", "source": f"file://{video}"})
-    response.raise_for_status()
-    return int(response.json()["id"])
 
 
 def test_kill_9_mid_alarm_loses_no_event_and_the_restart_closes_the_open_one(
@@ -42,7 +41,7 @@ def test_kill_9_mid_alarm_loses_no_event_and_the_restart_closes_the_open_one(
         process,
         base,
     ):
-        cam = _add_camera(base, video)
+        cam = add_camera(base, f"file://{video}", "door")
         with WsClient(base.replace("http", "ws") + "/ws") as ws:
             httpx.post(f"{base}/api/cameras/{cam}/activate").raise_for_status()
             ws.wait("alarm", 45, count=3, camera_id=cam)
@@ -111,7 +110,7 @@ def test_a_full_disk_costs_the_pictures_not_the_events_and_snapshots_resume(
     capfd: pytest.CaptureFixture[str],
 ) -> None:
     server = serve(tmp_path / "data")
-    cam = _add_camera(server.base, motion_video)
+    cam = add_camera(server.base, f"file://{motion_video}", "door")
     restore = _refuse_writes(tmp_path / "data" / "snapshots", cam)
     with WsClient(server.ws) as ws:
         httpx.post(f"{server.base}/api/cameras/{cam}/activate").raise_for_status()
@@ -178,7 +177,7 @@ def test_the_size_cap_holds_at_start_and_while_alarms_add_snapshots(
     storage = httpx.get(f"{server.base}/api/health").json()["storage"]
     assert storage["snapshots_mb"] == round(cap_bytes / 2**20, 3)
 
-    cam = _add_camera(server.base, motion_video)
+    cam = add_camera(server.base, f"file://{motion_video}", "door")
     with WsClient(server.ws) as ws:
         httpx.post(f"{server.base}/api/cameras/{cam}/activate").raise_for_status()
         alarm = ws.wait("alarm", 30, camera_id=cam)[0]

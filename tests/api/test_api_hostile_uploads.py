@@ -25,7 +25,7 @@ import psutil
 import pytest
 
 from app.api.routes.analyses import display_name
-from tests.api.vigil_livekit import MjpegCamera, Running, wait_for, write_video
+from tests.api.vigil_livekit import MjpegCamera, Running, add_camera, wait_for, write_video
 
 Upload = tuple[str, bytes]
 
@@ -167,12 +167,7 @@ def _live_camera(server: Running) -> Iterator[Callable[[], int]]:
     """A real MJPEG camera on loopback, added and activated; yields its frames processed."""
     camera = MjpegCamera().start()
     try:
-        added = httpx.post(
-            f"{server.base}/api/cameras", json={"name": "door", "source": camera.url}
-        )
-        assert added.status_code == 200, added.text
-        cam_id = added.json()["id"]
-        httpx.post(f"{server.base}/api/cameras/{cam_id}/activate").raise_for_status()
+        cam_id = add_camera(server.base, camera.url, "door", activate=True)
 
         def view() -> dict[str, Any]:
             return dict(httpx.get(f"{server.base}/api/cameras/{cam_id}").json())

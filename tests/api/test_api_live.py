@@ -12,14 +12,11 @@ import cv2
 import httpx
 import numpy as np
 
-from tests.api.vigil_livekit import Running, WsClient, read_mjpeg_frames, wait_for
+from tests.api.vigil_livekit import Running, WsClient, add_camera, read_mjpeg_frames, wait_for
 
 
 def _add(server: Running, video: Path, **extra: object) -> int:
-    body = {"name": "lane", "source": f"file://{video}", **extra}
-    response = httpx.post(f"{server.base}/api/cameras", json=body)
-    assert response.status_code == 200, response.text
-    cam_id = int(response.json()["id"])
+    cam_id = add_camera(server.base, f"file://{video}", **extra)
     wait_for(
         lambda: httpx.get(f"{server.base}/api/cameras/{cam_id}").json()["state"] == "live",
         10,

@@ -6,18 +6,12 @@ import threading
 from collections.abc import Callable
 from pathlib import Path
 
+import cv2
 import httpx
+import numpy as np
 import psutil
 
-from tests.api.vigil_livekit import Running, WsClient, wait_for, write_video
-
-
-def _add_active_camera(base: str, video: Path, name: str) -> int:
-    added = httpx.post(f"{base}/api/cameras", json={"name": name, "source": f"file://{video}"})
-    added.raise_for_status()
-    cam = int(added.json()["id"])
-    httpx.post(f"{base}/api/cameras/{cam}/activate").raise_for_status()
-    return cam
+from tests.api.vigil_livekit import Running, WsClient, add_camera, wait_for, write_video
 
 
 def _camera(base: str, cam: int) -> dict:
@@ -40,8 +34,8 @@ def test_cameras_are_spread_over_the_processes_and_each_raises_alarms(
     other = write_video(tmp_path / "other.avi")
     with WsClient(server.ws) as ws:
         cams = [
-            _add_active_camera(server.base, motion_video, "porch"),
-            _add_active_camera(server.base, other, "gate"),
+            add_camera(server.base, f"file://{motion_video}", "porch", activate=True),
+            add_camera(server.base, f"file://{other}", "gate", activate=True),
         ]
         for cam in cams:
             ws.wait("alarm", 30, camera_id=cam)
@@ -54,7 +48,7 @@ def test_a_camera_process_that_dies_is_restarted_with_its_cameras(
 ) -> None:
     server = serve(camera_processes=1)
     with WsClient(server.ws) as ws:
-        cam = _add_active_camera(server.base, motion_video, "porch")
+        cam = add_camera(server.base, f"file://{motion_video}", "porch", activate=True)
         (alarm,) = ws.wait("alarm", 30, camera_id=cam)
         (host,) = _camera_processes()
         host.kill()  # As a decoder crash would end it, mid-event.
@@ -87,7 +81,7 @@ def test_an_open_stream_carries_on_through_a_restart_and_a_new_source(
     serve: Callable[..., Running], motion_video: Path, tmp_path: Path
 ) -> None:
     server = serve(camera_processes=1)
-    cam = _add_active_camera(server.base, motion_video, "porch")
+    cam = add_camera(server.base, f"file://{motion_video}", "porch", activate=True)
     url = f"{server.base}/api/cameras/{cam}/stream.mjpg"
     received = [0]
     stop = threading.Event()
@@ -101,13 +95,24 @@ def test_an_open_stream_carries_on_through_a_restart_and_a_new_source(
         before = received[0]
         wait_for(lambda: received[0] > before + 10, 30, "frames after the restart")
 
-        other = write_video(tmp_path / "other.avi")
+        other = tmp_path / "other.avi"  # Smaller than the first: its frames are told apart.
+        writer = cv2.VideoWriter(str(other), cv2.VideoWriter.fourcc(*"MJPG"), 15, (160, 120))
+        for _ in range(30):
+            writer.write(np.full((120, 160, 3), 90, np.uint8))
+        writer.release()
         changed = httpx.patch(
             f"{server.base}/api/cameras/{cam}", json={"source": f"file://{other}"}
         )
         changed.raise_for_status()
+
         # The old stream ends with its worker; a new viewer gets the new source's frames.
-        fresh = httpx.get(f"{server.base}/api/cameras/{cam}/frame.jpg", timeout=10)
-        assert fresh.status_code == 200 and fresh.content[:2] == b"\xff\xd8"
+        def new_source_shown() -> bool:
+            fresh = httpx.get(f"{server.base}/api/cameras/{cam}/frame.jpg", timeout=10)
+            if fresh.status_code != 200 or fresh.content[:2] != b"\xff\xd8":
+                return False
+            picture = cv2.imdecode(np.frombuffer(fresh.content, np.uint8), cv2.IMREAD_COLOR)
+            return picture is not None and picture.shape[:2] == (120, 160)
+
+        wait_for(new_source_shown, 15, "a frame of the new source")
     finally:
         stop.set()

@@ -12,9 +12,7 @@ from pathlib import Path
 
 import httpx
 
-from tests.api.vigil_livekit import read_mjpeg_frames, serve_process
-
-ROOT = Path(__file__).resolve().parents[2]
+from tests.api.vigil_livekit import ROOT, read_mjpeg_frames, serve_process
 
 
 def test_serve_process_demo_and_prompt_exit(tmp_path: Path) -> None:
@@ -46,7 +44,7 @@ def test_serve_process_demo_and_prompt_exit(tmp_path: Path) -> None:
 
 
 def test_serve_off_loopback_refuses_to_start_without_a_password(tmp_path: Path) -> None:
-    env = {k: v for k, v in os.environ.items() if k != "VIGIL_PASSWORD"}
+    env = {k: v for k, v in os.environ.items() if not k.startswith("VIGIL_")}
     result = subprocess.run(
         [sys.executable, "-m", "app", "serve", "--host", "0.0.0.0", "--data", str(tmp_path)],
         capture_output=True, text=True, cwd=ROOT, env=env, timeout=60,

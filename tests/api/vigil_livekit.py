@@ -91,6 +91,18 @@ def wait_for(
 ROOT = Path(__file__).resolve().parents[2]
 
 
+def add_camera(
+    base: str, source: str, name: str = "lane", activate: bool = False, **extra: Any
+) -> int:
+    """POST a camera (``extra``: more of its fields) and, if asked, activate it; its id."""
+    added = httpx.post(f"{base}/api/cameras", json={"name": name, "source": source, **extra})
+    assert added.status_code == 200, added.text
+    camera_id = int(added.json()["id"])
+    if activate:
+        httpx.post(f"{base}/api/cameras/{camera_id}/activate").raise_for_status()
+    return camera_id
+
+
 @contextmanager
 def serve_process(data_dir: Path, **env: str) -> Iterator[tuple[subprocess.Popen[str], str]]:
     """``vigil serve`` as its own process on a free port, answering; ``env`` adds variables.

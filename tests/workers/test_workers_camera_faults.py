@@ -98,7 +98,8 @@ def test_camera_that_stalls_mid_frame_is_lost_then_resumes(
         assert worker.state == "reconnecting", worker.state
         assert resumes(worker, camera) < RESUME_S
     states = [state for state, _ in log.states()]
-    assert "reconnecting" in states and states[-1] in ("live", "stopped")
+    # Clients were told both: the camera was lost, then live again.
+    assert "live" in states[states.index("reconnecting") :]
 
 
 def test_camera_that_never_answers_shows_error_then_resumes(
@@ -112,8 +113,13 @@ def test_camera_that_never_answers_shows_error_then_resumes(
         time.sleep(6)  # Long enough for the backoff to reach its longest.
         assert resumes(worker, camera) < RESUME_S
     states = log.states()
-    assert any(state == "error" and "cannot open" in reason for state, reason in states)
-    assert states[-1][0] in ("live", "stopped")
+    failed = [
+        i
+        for i, (state, reason) in enumerate(states)
+        if state == "error" and "cannot open" in reason
+    ]
+    assert failed
+    assert "live" in [state for state, _ in states[failed[0] :]]
 
 
 def test_camera_sending_garbage_is_reported_then_resumes(

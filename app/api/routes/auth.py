@@ -8,14 +8,13 @@ from __future__ import annotations
 
 import json
 from dataclasses import dataclass
-from pathlib import Path
 from urllib.parse import parse_qs
 
 from fastapi import APIRouter, HTTPException, Request
 from fastapi.responses import JSONResponse, RedirectResponse, Response
-from fastapi.templating import Jinja2Templates
 
 import app as vigil_package
+from app.api.routes.pages import TEMPLATES
 from app.api.security import (
     SESSION_COOKIE,
     Access,
@@ -26,12 +25,10 @@ from app.api.security import (
 )
 
 router = APIRouter(tags=["auth"])
-TEMPLATES = Jinja2Templates(
-    directory=str(Path(vigil_package.__file__).resolve().parent / "templates")
-)
 FORM = "application/x-www-form-urlencoded"
-MAX_BODY = 8192
-"""A login is a password and a path: anything bigger is not one (the route is open to all)."""
+MAX_LOGIN_BODY = 8192
+"""A login is a password and a path: anything bigger is not one (the route is open to all,
+so ``BodyLimit`` refuses more)."""
 
 
 @dataclass
@@ -80,11 +77,7 @@ async def login_page(request: Request, next: str = "/") -> Response:  # on the l
 
 
 async def _credentials(request: Request) -> Credentials:
-    body = b""
-    async for chunk in request.stream():
-        body += chunk
-        if len(body) > MAX_BODY:
-            raise HTTPException(413, "a login is a password, not a file")
+    body = await request.body()  # At most MAX_LOGIN_BODY: BodyLimit sees to it.
     if _is_form(request):
         fields = parse_qs(body.decode("utf-8", "replace"), keep_blank_values=True)
         return Credentials(

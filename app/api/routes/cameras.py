@@ -7,7 +7,7 @@ from typing import Annotated, Any
 from fastapi import APIRouter, HTTPException, Request, Response
 from pydantic import BaseModel, Field, field_validator
 
-from app.api.routes.inputs import MAX_ID, StrictJsonRoute, is_control
+from app.api.routes.inputs import StrictJsonRoute, is_control
 from app.api.services import services
 from app.sources.live import parse_source
 from app.vision.motion import DEFAULT_METHOD, METHODS
@@ -78,8 +78,7 @@ class CameraPatch(BaseModel):
 
 
 def _camera_or_404(request: Request, camera_id: int) -> dict[str, Any]:
-    # An id past SQLite's integers names no camera (and cannot even be looked up).
-    camera = services(request).database.camera(camera_id) if abs(camera_id) <= MAX_ID else None
+    camera = services(request).database.camera(camera_id)
     if camera is None:
         raise HTTPException(404, f"no camera {camera_id}")
     return camera

@@ -86,7 +86,7 @@ def _zip_entries(svc: Services, rows: list[dict[str, Any]]) -> Iterator[bytes]:
 @router.get("/snapshots/{snapshot_id}.jpg")
 def snapshot_file(request: Request, snapshot_id: int) -> FileResponse:
     svc = services(request)
-    row = svc.database.snapshot(snapshot_id) if abs(snapshot_id) <= MAX_ID else None
+    row = svc.database.snapshot(snapshot_id)
     if row is None:
         raise HTTPException(404, f"no snapshot {snapshot_id}")
     path = svc.snapshots.path(row["path"])
@@ -114,8 +114,7 @@ def delete_snapshots(request: Request, body: DeleteRequest) -> dict[str, Any]:
 
 @router.delete("/snapshots/{snapshot_id}")
 def delete_snapshot(request: Request, snapshot_id: int) -> dict[str, Any]:
-    in_range = abs(snapshot_id) <= MAX_ID
-    result = _delete(services(request), [snapshot_id]) if in_range else {"deleted": []}
+    result = _delete(services(request), [snapshot_id])
     if not result["deleted"]:
         raise HTTPException(404, f"no snapshot {snapshot_id}")
     return result

@@ -149,7 +149,7 @@ class AdaptiveBackground(MotionMethod):
         buffers = self._buffers
         self._frame_index += 1
 
-        established = 255.0 * self.mode_weight
+        established_weight = 255.0 * self.mode_weight
         difference = np.empty_like(gray)
         kernels.compare_with_modes(
             gray,
@@ -157,7 +157,7 @@ class AdaptiveBackground(MotionMethod):
             self._alternate,
             self._weight,
             self._gain(gray),
-            established,
+            established_weight,
             buffers.main,
             buffers.alternate,
             difference,
@@ -210,7 +210,7 @@ class AdaptiveBackground(MotionMethod):
             self._deviation,
             threshold,
             self.weak_fraction,
-            established,
+            established_weight,
             255.0 * self.mode_rate,
             self.learning_rate,
             self.mode_rate,

@@ -3,22 +3,19 @@
 Written as plain loops and compiled by Numba, so a frame's dozen per-pixel
 steps (compare with both modes, threshold, teach the variability and the
 modes, look for change) read each pixel once instead of once per OpenCV
-call: a live camera's frame costs a third of what the same model cost as
-some forty whole-image OpenCV calls, most of it in fetching images and code
-that had gone cold while the camera waited for its next frame. The
-neighbourhood steps (dilate, erode, connected regions) stay with OpenCV.
+call. Some forty whole-image OpenCV calls and the Python between them cost
+a live camera most in fetching images and code that had gone cold while it
+waited for its next frame. The neighbourhood steps (dilate, erode,
+connected regions) stay with OpenCV, whose vector code is faster.
 
 A grey level is compared with a threshold as OpenCV's ``threshold`` does
 (``difference > floor(threshold)``, which for whole grey levels is
 ``difference > threshold``), and models (never negative) are rounded to grey
 levels as its ``saturate_cast`` rounds (to nearest, halves to even, at most
 255); grey levels are signed 64-bit inside the loops, so a difference never
-wraps round. Frames
-must be 8-bit grey (the callers check). The kernels release the GIL:
-cameras that share a process run them side by side. Compiled code is cached
-beside this file, or in the user's cache where that is read-only, so only
-the first run on a machine compiles (a second or two); where neither is
-writable, each process compiles afresh (``app.vision.compiled``).
+wraps round. Frames must be 8-bit grey (the callers check). The kernels
+release the GIL: cameras that share a process run them side by side. How
+and when they are compiled and cached: ``app.vision.compiled``.
 """
 
 from __future__ import annotations

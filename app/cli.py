@@ -3,8 +3,10 @@
 from __future__ import annotations
 
 import argparse
+import errno
 import ipaddress
 import json
+import os
 import sys
 from collections.abc import Sequence
 from pathlib import Path
@@ -13,6 +15,9 @@ from typing import Any, NoReturn
 from app import __version__
 
 EXIT_BAD_INPUT = 2
+MAX_PORT = 65535
+FFMPEG_QUIET = "-8"
+"""FFmpeg's AV_LOG_QUIET."""
 
 
 class _Parser(argparse.ArgumentParser):
@@ -44,6 +49,16 @@ def _non_negative(value: str) -> float:
     return number
 
 
+def _port(value: str) -> int:
+    try:
+        port = int(value)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"not a port number: {value!r}") from None
+    if not 1 <= port <= MAX_PORT:
+        raise argparse.ArgumentTypeError(f"port must be 1..{MAX_PORT}, not {port}")
+    return port
+
+
 def build_parser() -> argparse.ArgumentParser:
     from app.vision.motion import DEFAULT_METHOD, METHODS
     from app.vision.preprocess import DENOISE_METHODS, ENHANCE_METHODS
@@ -54,7 +69,7 @@ def build_parser() -> argparse.ArgumentParser:
 
     serve = commands.add_parser("serve", help="run the dashboard")
     serve.add_argument("--host", default=None, help="address to bind (default 127.0.0.1)")
-    serve.add_argument("--port", type=int, default=None, help="port (default 8000)")
+    serve.add_argument("--port", type=_port, default=None, help="port (default 8000)")
     serve.add_argument(
         "--data", type=Path, default=None, help="folder for the database and snapshots"
     )
@@ -132,7 +147,11 @@ def build_parser() -> argparse.ArgumentParser:
 
 
 def _quiet_opencv() -> None:
-    """OpenCV's own warnings would break the one-line error contract on stderr."""
+    """OpenCV's and FFmpeg's messages would break the one-line error contract on stderr,
+    and a damaged file or a flaky camera repeats them for every frame; Vigil says what
+    went wrong itself. ``OPENCV_FFMPEG_LOGLEVEL`` set by the user wins (24 = warnings)."""
+    # Read when OpenCV first opens a video, here and in every process started from here.
+    os.environ.setdefault("OPENCV_FFMPEG_LOGLEVEL", FFMPEG_QUIET)
     import cv2
 
     cv2.utils.logging.setLogLevel(cv2.utils.logging.LOG_LEVEL_ERROR)
@@ -189,6 +208,13 @@ def _analyze(args: argparse.Namespace) -> int:
         return _fail("analyze", f"{exc.strerror or exc}: {exc.filename or out}")
     if not args.quiet:
         print(_summary(report, out))
+    evaluation = report.get("evaluation")
+    if evaluation is not None and not evaluation["frames_scored"]:
+        print(
+            "vigil analyze: warning: no frame of the input has ground truth "
+            "(check the truth's frame numbers); nothing was scored",
+            file=sys.stderr,
+        )
     return 0
 
 
@@ -257,6 +283,8 @@ def _is_loopback(host: str) -> bool:
 
 
 def _serve(args: argparse.Namespace) -> int:
+    from pydantic import ValidationError
+
     from app.core.config import Settings
 
     overrides: dict[str, Any] = {}
@@ -266,7 +294,17 @@ def _serve(args: argparse.Namespace) -> int:
         overrides["port"] = args.port
     if args.data is not None:
         overrides["data_dir"] = args.data
-    settings = Settings(**overrides)
+    try:
+        settings = Settings(**overrides)
+    except ValidationError as exc:  # A bad VIGIL_* variable.
+        error = exc.errors()[0]
+        return _fail("serve", f"VIGIL_{str(error['loc'][0]).upper()}: {error['msg']}")
+    try:
+        settings.data_dir.mkdir(parents=True, exist_ok=True)
+        if not os.access(settings.data_dir, os.W_OK | os.X_OK):
+            raise PermissionError(errno.EACCES, "not writable", str(settings.data_dir))
+    except OSError as exc:
+        return _fail("serve", f"cannot use data folder {settings.data_dir}: {exc.strerror}")
     # Settings reads VIGIL_PASSWORD and VIGIL_PASSWORD_HASH.
     if not _is_loopback(settings.host) and not (settings.password or settings.password_hash):
         return _fail(

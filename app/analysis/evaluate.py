@@ -31,9 +31,11 @@ def evaluate(out_dir: Path, truth_path: Path) -> dict[str, Any]:
         report = json.loads(report_path.read_text())
         frames = int(report["frames"])
         min_area = float(report["settings"]["min_area"])
+        width, height = (int(side) for side in report["size"])
     except (OSError, ValueError, KeyError, TypeError) as exc:
         raise EvaluationError(f"cannot read {report_path}: {exc}") from None
     truth = load_truth(truth_path, report.get("frame_numbers"))
+    truth.check_size((width, height))
     boxes = _boxes_by_frame(tracks_path)
     masks_dir = out_dir / "masks"
     scorer = Scorer(truth, min_area)

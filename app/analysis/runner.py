@@ -42,6 +42,8 @@ class AnalysisOptions:
     """Largest frame (width x height) accepted, checked from the header before decoding."""
     quiet_s: float = 1.0
     """Seconds without motion that end an event."""
+    input_name: str | None = None
+    """How the report names the input (an upload's own file name); default its path."""
 
 
 @dataclass
@@ -116,6 +118,8 @@ def analyze(
     options = options or AnalysisOptions()
     source = open_input(input_path, options.fps, options.max_pixels)
     truth = load_truth(options.truth, source.frame_numbers) if options.truth else None
+    if truth is not None:
+        truth.check_size(source.size)
     out_dir.mkdir(parents=True, exist_ok=True)
     (out_dir / "snapshots").mkdir(exist_ok=True)
     (out_dir / "differences").mkdir(exist_ok=True)
@@ -242,7 +246,7 @@ class _Analysis:
         }
         report: dict[str, Any] = {
             "vigil_version": app.__version__,
-            "input": str(self.source.path),
+            "input": self.options.input_name or str(self.source.path),
             "frames": frames,
             "header_frames": self.source.header_frames,
             "fps": self.source.fps,

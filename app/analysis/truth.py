@@ -32,6 +32,10 @@ from app.vision.types import Mask
 MASK_SUFFIXES = (".png", ".bmp", ".jpg", ".jpeg", ".tif", ".tiff", ".pgm")
 
 
+ASPECT_TOLERANCE = 0.02
+"""Labels whose width/height differs from the input's by more than this are another scene's."""
+
+
 class TruthError(ValueError):
     """The truth file or folder cannot be read; the message says why."""
 
@@ -58,6 +62,25 @@ class Truth:
         if image is None:
             raise TruthError(f"cannot read ground-truth image {path}")
         return image
+
+    def check_size(self, size: tuple[int, int]) -> None:
+        """Refuse labels of another shape than the input's ``(width, height)``.
+
+        Labels at another scale are rescaled when scored; another aspect ratio
+        means the truth belongs to another video.
+        """
+        first = self.frames[0] if self.frames else None
+        label = self.mask(first) if first is not None else None
+        pictures = [("labels", label), ("ROI", self.roi)]
+        for what, picture in pictures:
+            if picture is None:
+                continue
+            height, width = picture.shape[:2]
+            if abs(width * size[1] - height * size[0]) > ASPECT_TOLERANCE * width * size[1]:
+                raise TruthError(
+                    f"ground-truth {what} in {self.source} are {width}x{height}, "
+                    f"the input is {size[0]}x{size[1]}: not the same scene"
+                )
 
     def boxes_at(self, frame: int, min_area: float = 1.0) -> list[Box]:
         """True boxes of a frame; from a label mask, its connected moving regions."""

@@ -20,6 +20,8 @@ IMAGE_SUFFIXES = (".jpg", ".jpeg", ".png", ".bmp", ".tif", ".tiff", ".pgm", ".pp
 DEFAULT_FPS = 25.0
 """The rate assumed for a folder of frames, or a video whose header gives none that is sane."""
 MAX_FPS = 1000.0
+MIN_FRAMES = 2
+"""Motion needs two frames: a still picture (a PNG named .avi) is not a video to analyse."""
 _NUMBER = re.compile(r"(\d+)\D*$")
 
 
@@ -136,6 +138,8 @@ def open_input(path: Path, fps: float | None = None, max_pixels: int | None = No
         if not ok or first is None:
             raise InputError(f"video has no decodable frames: {path}")
         check_frame_size(first.shape[1], first.shape[0], max_pixels)
+        if not capture.grab():
+            raise InputError(_SINGLE_PICTURE.format(path=path))
         rate = fps if fps and 0 < fps <= MAX_FPS else frame_rate(capture)
         claimed = capture.get(cv2.CAP_PROP_FRAME_COUNT)
     finally:
@@ -149,13 +153,22 @@ def open_input(path: Path, fps: float | None = None, max_pixels: int | None = No
     )
 
 
+_SINGLE_PICTURE = (
+    "{path} holds only one decodable frame (a picture, not a video?): motion needs at least two"
+)
+
+
 def _open_folder(folder: Path, fps: float | None, max_pixels: int | None) -> VideoInput:
+    if (folder / "input").is_dir() and (folder / "groundtruth").is_dir():
+        folder = folder / "input"  # A CDnet sequence: its frames, not its ROI picture.
     try:
         images = sorted(p for p in folder.iterdir() if p.suffix.lower() in IMAGE_SUFFIXES)
     except PermissionError:
         raise InputError(f"folder is not readable: {folder}") from None
     if not images:
         raise InputError(f"no image frames in folder: {folder}")
+    if len(images) < MIN_FRAMES:
+        raise InputError(_SINGLE_PICTURE.format(path=folder))
     first = cv2.imread(str(images[0]), cv2.IMREAD_COLOR)
     if first is None:
         raise InputError(f"cannot decode image {images[0].name} in {folder}")

@@ -24,8 +24,6 @@ from typing import Any
 
 LIVE_FRAME = "live.jpg"
 LIVE_INTERVAL_S = 0.1
-MIN_FRAMES = 2
-"""Motion needs two frames: a still picture (a PNG named .avi) is not a video to analyse."""
 
 
 def _limit_memory(memory_mb: int) -> None:
@@ -111,16 +109,10 @@ def main(argv: list[str] | None = None) -> int:
             _say({"progress": round(fraction, 4), "frames": done})
 
         # What is too large is refused from its header, before a frame is decoded.
-        analysis = runner.AnalysisOptions(pipeline=config, max_pixels=options.get("max_pixels"))
-        report = runner.analyze(input_path, out_dir, analysis, progress, keep_live_frame)
-        if report["frames"] < MIN_FRAMES:
-            _say(
-                {
-                    "error": f"{name} holds a single picture, not a video: "
-                    "motion needs at least two frames"
-                }
-            )
-            return 2
+        analysis = runner.AnalysisOptions(
+            pipeline=config, max_pixels=options.get("max_pixels"), input_name=name
+        )
+        runner.analyze(input_path, out_dir, analysis, progress, keep_live_frame)
     except Exception as exc:
         if _out_of_memory(exc):
             limit = options.get("memory_mb")

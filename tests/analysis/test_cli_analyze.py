@@ -179,6 +179,56 @@ def test_cdnet_style_truth_gives_pixel_metrics(tmp_path, walker_video):
     assert pixels["f_measure"] > 0.8
 
 
+def _cdnet_sequence(folder: Path, size: tuple[int, int]) -> Path:
+    """A CDnet-style sequence: input/in*.jpg, groundtruth/gt*.png (``size``), an ROI."""
+    (folder / "input").mkdir(parents=True)
+    (folder / "groundtruth").mkdir()
+    for i in range(WALKER.frames):
+        cv2.imwrite(str(folder / "input" / f"in{i + 1:06d}.jpg"), WALKER.frame(i))
+        label = np.zeros((240, 320), np.uint8)
+        for t in WALKER.truth(i):
+            label[t.box.y : t.box.y + t.box.h, t.box.x : t.box.x + t.box.w] = 255
+        cv2.imwrite(str(folder / "groundtruth" / f"gt{i + 1:06d}.png"), cv2.resize(label, size))
+    cv2.imwrite(str(folder / "ROI.jpg"), np.full((size[1], size[0]), 255, np.uint8))
+    return folder
+
+
+def test_cdnet_sequence_folder_is_analysed_from_its_input_frames(tmp_path):
+    sequence = _cdnet_sequence(tmp_path / "seq", (320, 240))
+    result = vigil("analyze", sequence, "--out", tmp_path / "out", "--truth", sequence, "--quiet")
+    assert result.returncode == 0, result.stderr
+    report = json.loads((tmp_path / "out" / "report.json").read_text())
+    assert report["frames"] == WALKER.frames  # the frames of input/, not ROI.jpg alone
+    assert report["evaluation"]["pixels"]["f_measure"] > 0.8
+
+
+def test_truth_at_another_scale_is_scored_and_of_another_shape_refused(tmp_path, walker_video):
+    doubled = _cdnet_sequence(tmp_path / "doubled", (640, 480))
+    result = vigil("analyze", walker_video, "--out", tmp_path / "a", "--truth", doubled, "--quiet")
+    assert result.returncode == 0, result.stderr
+    pixels = json.loads((tmp_path / "a" / "report.json").read_text())["evaluation"]["pixels"]
+    assert pixels["f_measure"] > 0.8
+    wide = _cdnet_sequence(tmp_path / "wide", (720, 480))
+    result = vigil("analyze", walker_video, "--out", tmp_path / "b", "--truth", wide)
+    assert result.returncode == 2
+    assert result.stderr.strip().splitlines() == [
+        f"vigil analyze: error: ground-truth labels in {wide} are 720x480, "
+        "the input is 320x240: not the same scene"
+    ]
+    result = vigil("evaluate", tmp_path / "a", "--truth", wide)
+    assert result.returncode == 2 and "not the same scene" in result.stderr
+
+
+def test_truth_of_frames_the_input_lacks_is_warned_of(tmp_path, walker_video):
+    truth = tmp_path / "late.json"
+    truth.write_text(json.dumps({"frames": {"5000": [[10, 10, 30, 40]]}}))
+    result = vigil("analyze", walker_video, "--out", tmp_path / "out", "--truth", truth, "--quiet")
+    assert result.returncode == 0
+    assert "no frame of the input has ground truth" in result.stderr
+    report = json.loads((tmp_path / "out" / "report.json").read_text())
+    assert report["evaluation"]["frames_scored"] == 0
+
+
 def test_folder_of_frames_sorted_by_name(tmp_path):
     folder = tmp_path / "frames"
     folder.mkdir()
@@ -212,6 +262,7 @@ def test_truncated_video_is_analysed_up_to_where_it_breaks(tmp_path, walker_vide
     cut.write_bytes(data[: len(data) // 2])  # the header still claims every frame
     result = vigil("analyze", cut, "--out", tmp_path / "out", "--quiet")
     assert result.returncode == 0, result.stderr
+    assert result.stderr == ""  # FFmpeg's complaints about the cut stay out of a quiet run.
     report = json.loads((tmp_path / "out" / "report.json").read_text())
     assert 10 < report["frames"] < WALKER.frames
 
@@ -235,6 +286,24 @@ def _empty_folder(d: Path) -> Path:
     return d / "noframes"
 
 
+def _picture(d: Path) -> Path:
+    cv2.imwrite(str(d / "still.png"), WALKER.frame(10))
+    return (d / "still.png").rename(d / "still.avi")
+
+
+def _one_frame_folder(d: Path) -> Path:
+    (d / "one").mkdir()
+    cv2.imwrite(str(d / "one" / "000001.png"), WALKER.frame(10))
+    return d / "one"
+
+
+def _cut_mp4(d: Path) -> Path:
+    """An MP4 cut before its index (moov), which FFmpeg itself complains of on stderr."""
+    whole = write_scene_video(WALKER, d / "whole.mp4", fourcc="mp4v").read_bytes()
+    (d / "cut.mp4").write_bytes(whole[: len(whole) // 2])
+    return d / "cut.mp4"
+
+
 @pytest.mark.parametrize(
     ("make", "reason"),
     [
@@ -242,8 +311,11 @@ def _empty_folder(d: Path) -> Path:
         (_empty, "empty"),
         (_text, "not a video"),
         (_empty_folder, "no image frames"),
+        (_picture, "only one decodable frame"),
+        (_one_frame_folder, "only one decodable frame"),
+        (_cut_mp4, "not a video FFmpeg can decode"),
     ],
-    ids=["missing", "empty", "not-a-video", "empty-folder"],
+    ids=["missing", "empty", "not-a-video", "empty-folder", "picture", "one-frame", "cut-mp4"],
 )
 def test_bad_input_exits_2_with_one_readable_line(tmp_path, make, reason):
     result = vigil("analyze", make(tmp_path), "--out", tmp_path / "out")

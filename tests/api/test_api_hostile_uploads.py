@@ -201,7 +201,7 @@ def test_hostile_files_fail_alone_while_a_camera_and_an_analysis_carry_on(
     failing: dict[str, tuple[bytes, str]] = {
         "random.avi": (os.urandom(64 * 1024), "not a video FFmpeg can decode: random.avi"),
         "cut-in-header.avi": (video[:300], "not a video FFmpeg can decode"),
-        "picture.avi": (_png(), "picture.avi holds a single picture, not a video"),
+        "picture.avi": (_png(), "picture.avi holds only one decodable frame"),
         "notes.avi": (b"this is not a video\n" * 200, "not a video FFmpeg can decode"),
         "archive.avi": (_zip(), "not a video FFmpeg can decode"),
         # 5 MB that decode to 432 MB a frame: refused from the header, before a frame is read.
@@ -219,6 +219,9 @@ def test_hostile_files_fail_alone_while_a_camera_and_an_analysis_carry_on(
             assert result["status"] == "failed", (name, result)
             assert failing[name][1] in _assert_readable(result["error"], tmp_path), name
             assert result["report"] is None
+            stream = httpx.get(f"{server.base}/api/analyses/{analysis_id}/stream.mjpg")
+            assert stream.status_code == 404, name
+            assert stream.json()["detail"] == "no frames to show: the analysis is failed"
 
         # Decoded until the reader stops, whatever the header says: what is there is analysed.
         report = _finished(server, truncated)["report"]
@@ -319,9 +322,11 @@ def _crash_beside_another(
     victim = _upload(server, "victim.avi", video)
     child = wait_for(lambda: _analysis_process(victim), 30, "the analysis process")
     wait_for(lambda: _analysis(server, beside)["status"] == "running", 30, "both to run")
+    reached = wait_for(lambda: _analysis(server, victim)["progress"], 30, "some progress")
     child.send_signal(sig)
     result = _finished(server, victim)
     assert result["status"] == "failed"
+    assert result["progress"] >= reached  # It keeps how far it got.
     assert _finished(server, beside)["status"] == "done"
     wait_for(lambda: _analysis_process(victim) is None, 10, "the child to be reaped")
     return _assert_readable(result["error"], tmp_path)

@@ -156,6 +156,8 @@ class FileSource:
     paced = True
 
     def __init__(self, path: Path) -> None:
+        if path.is_dir():
+            raise SourceError(f"a folder, not a video file: {path}")
         if not path.is_file():
             raise SourceError(f"file not found: {path}")
         self.path = path

@@ -181,7 +181,7 @@ class AnalysisManager:
             with self._lock:
                 self._children.pop(analysis_id, None)
         if done and code == 0:
-            self.db.update_analysis(analysis_id, progress=1.0)
+            self.progress[analysis_id] = 1.0
             self.bus.publish({"type": "progress", "analysis_id": analysis_id, "progress": 1.0})
             self._finish(analysis_id, "done", None)
             return
@@ -207,8 +207,11 @@ class AnalysisManager:
         ]
 
     def _finish(self, analysis_id: str, status: str, error: str | None) -> None:
-        self.progress.pop(analysis_id, None)
-        self.db.update_analysis(analysis_id, status=status, error=error, finished_at=time.time())
+        # A failed analysis keeps how far it got.
+        reached = self.progress.pop(analysis_id, 0.0)
+        self.db.update_analysis(
+            analysis_id, status=status, error=error, finished_at=time.time(), progress=reached
+        )
         self.bus.publish(
             {"type": "status", "analysis_id": analysis_id, "status": status, "error": error}
         )

@@ -46,6 +46,7 @@ def test_upload_is_analysed_with_progress(serve: Callable[..., Running], tmp_pat
     assert result["progress"] == 1.0 and result["error"] is None
     report = result["report"]
     assert report["frames"] == 150 and report["tracks"], "the square should be tracked"
+    assert report["input"] == "clip.avi"  # as uploaded, not where the server keeps it
     assert report["settings"]["min_area"] == 50
     tracks = httpx.get(f"{server.base}/api/analyses/{analysis_id}/tracks.csv")
     rows = list(csv.DictReader(io.StringIO(tracks.text)))

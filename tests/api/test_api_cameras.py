@@ -50,6 +50,8 @@ def test_camera_crud_and_restart(
     assert bad_method.status_code == 422
     too_high = httpx.patch(f"{base}/api/cameras/{cam_id}", json={"sensitivity": 300})
     assert too_high.status_code == 422
+    misspelt = httpx.patch(f"{base}/api/cameras/{cam_id}", json={"sensitivty": 5})
+    assert misspelt.status_code == 422 and "sensitivty" in misspelt.text
 
     changed = httpx.patch(
         f"{base}/api/cameras/{cam_id}",
@@ -104,6 +106,17 @@ def test_camera_that_cannot_open_shows_error(serve: Callable[..., Running], tmp_
     assert "file not found" in camera["reason"]
     frame = httpx.get(f"{server.base}/api/cameras/{cam}/frame.jpg", timeout=10)
     assert frame.status_code == 503 and "error" in frame.json()["detail"]
+    folder = httpx.post(
+        f"{server.base}/api/cameras", json={"name": "folder", "source": str(tmp_path)}
+    ).json()["id"]
+    camera = wait_for(
+        lambda: (
+            (c := httpx.get(f"{server.base}/api/cameras/{folder}").json())["state"] == "error" and c
+        ),
+        10,
+        "the error state",
+    )
+    assert camera["reason"].startswith(f"a folder, not a video file: {tmp_path}")
 
 
 def test_password_protects_everything_but_health(serve: Callable[..., Running]) -> None:

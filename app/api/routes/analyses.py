@@ -186,8 +186,10 @@ def report_html(request: Request, analysis_id: str) -> FileResponse:
 def stream(request: Request, analysis_id: str) -> StreamingResponse:
     """Annotated frames while the analysis runs; ends with its last frame."""
     svc = services(request)
-    _row_or_404(svc, analysis_id)
+    row = _row_or_404(svc, analysis_id)
     live = svc.analyses.folder(analysis_id) / "out" / LIVE_FRAME
+    if row["status"] in FINISHED and not live.is_file():
+        raise HTTPException(404, f"no frames to show: the analysis is {row['status']}")
     return StreamingResponse(
         _follow(request, svc, analysis_id, live), media_type=MJPEG_TYPE, headers=NO_CACHE
     )

@@ -5,7 +5,7 @@ from __future__ import annotations
 from typing import Annotated, Any
 
 from fastapi import APIRouter, HTTPException, Request, Response
-from pydantic import BaseModel, Field, field_validator
+from pydantic import BaseModel, ConfigDict, Field, field_validator
 
 from app.api.routes.inputs import StrictJsonRoute, is_control
 from app.api.services import services
@@ -44,6 +44,8 @@ def _check_source(value: str | None) -> str | None:
 
 
 class CameraIn(BaseModel):
+    model_config = ConfigDict(extra="forbid")  # A misspelt setting is an error, not ignored.
+
     name: str = Field(min_length=1, max_length=100)
     source: str = Field(min_length=1, max_length=2000)
     sensitivity: Sensitivity | None = None
@@ -56,6 +58,8 @@ class CameraIn(BaseModel):
 
 
 class CameraPatch(BaseModel):
+    model_config = ConfigDict(extra="forbid")
+
     name: str | None = Field(default=None, min_length=1, max_length=100)
     source: str | None = Field(default=None, min_length=1, max_length=2000)
     sensitivity: Sensitivity | None = None

@@ -104,11 +104,14 @@ def add_camera(
 
 
 @contextmanager
-def serve_process(data_dir: Path, **env: str) -> Iterator[tuple[subprocess.Popen[str], str]]:
+def serve_process(
+    data_dir: Path, own_group: bool = False, **env: str
+) -> Iterator[tuple[subprocess.Popen[str], str]]:
     """``vigil serve`` as its own process on a free port, answering; ``env`` adds variables.
 
     Yields the process (stdout and stderr together, as text) and its base URL; killed at
-    the end if still running.
+    the end if still running. ``own_group``: in a process group of its own (with its
+    camera processes), to be signalled as a service manager does.
     """
     sock = free_socket()
     port = sock.getsockname()[1]
@@ -120,6 +123,7 @@ def serve_process(data_dir: Path, **env: str) -> Iterator[tuple[subprocess.Popen
         stdout=subprocess.PIPE,
         stderr=subprocess.STDOUT,
         text=True,
+        start_new_session=own_group,
     )
     base = f"http://127.0.0.1:{port}"
 

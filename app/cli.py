@@ -15,9 +15,6 @@ from typing import Any, NoReturn
 from app import __version__
 
 EXIT_BAD_INPUT = 2
-MAX_PORT = 65535
-FFMPEG_QUIET = "-8"
-"""FFmpeg's AV_LOG_QUIET."""
 
 
 class _Parser(argparse.ArgumentParser):
@@ -50,6 +47,8 @@ def _non_negative(value: str) -> float:
 
 
 def _port(value: str) -> int:
+    from app.core.config import MAX_PORT
+
     try:
         port = int(value)
     except ValueError:
@@ -149,9 +148,12 @@ def build_parser() -> argparse.ArgumentParser:
 def _quiet_opencv() -> None:
     """OpenCV's and FFmpeg's messages would break the one-line error contract on stderr,
     and a damaged file or a flaky camera repeats them for every frame; Vigil says what
-    went wrong itself. ``OPENCV_FFMPEG_LOGLEVEL`` set by the user wins (24 = warnings)."""
-    # Read when OpenCV first opens a video, here and in every process started from here.
-    os.environ.setdefault("OPENCV_FFMPEG_LOGLEVEL", FFMPEG_QUIET)
+    went wrong itself. ``OPENCV_FFMPEG_LOGLEVEL`` set by the user wins (24 = warnings,
+    which OpenCV then prints on stdout)."""
+    from app.sources.files import FFMPEG_LOG_QUIET
+
+    # Read each time OpenCV opens a video, here and in every process started from here.
+    os.environ.setdefault("OPENCV_FFMPEG_LOGLEVEL", FFMPEG_LOG_QUIET)
     import cv2
 
     cv2.utils.logging.setLogLevel(cv2.utils.logging.LOG_LEVEL_ERROR)
@@ -208,13 +210,7 @@ def _analyze(args: argparse.Namespace) -> int:
         return _fail("analyze", f"{exc.strerror or exc}: {exc.filename or out}")
     if not args.quiet:
         print(_summary(report, out))
-    evaluation = report.get("evaluation")
-    if evaluation is not None and not evaluation["frames_scored"]:
-        print(
-            "vigil analyze: warning: no frame of the input has ground truth "
-            "(check the truth's frame numbers); nothing was scored",
-            file=sys.stderr,
-        )
+    _warn_if_nothing_scored("analyze", report.get("evaluation"))
     return 0
 
 
@@ -270,7 +266,17 @@ def _evaluate(args: argparse.Namespace) -> int:
     except ValueError as exc:
         return _fail("evaluate", exc)
     print(json.dumps(result, indent=2))
+    _warn_if_nothing_scored("evaluate", result)
     return 0
+
+
+def _warn_if_nothing_scored(command: str, evaluation: dict[str, Any] | None) -> None:
+    if evaluation is not None and not evaluation["frames_scored"]:
+        print(
+            f"vigil {command}: warning: no frame of the input has ground truth "
+            "(check the truth's frame numbers); nothing was scored",
+            file=sys.stderr,
+        )
 
 
 def _is_loopback(host: str) -> bool:
@@ -299,12 +305,6 @@ def _serve(args: argparse.Namespace) -> int:
     except ValidationError as exc:  # A bad VIGIL_* variable.
         error = exc.errors()[0]
         return _fail("serve", f"VIGIL_{str(error['loc'][0]).upper()}: {error['msg']}")
-    try:
-        settings.data_dir.mkdir(parents=True, exist_ok=True)
-        if not os.access(settings.data_dir, os.W_OK | os.X_OK):
-            raise PermissionError(errno.EACCES, "not writable", str(settings.data_dir))
-    except OSError as exc:
-        return _fail("serve", f"cannot use data folder {settings.data_dir}: {exc.strerror}")
     # Settings reads VIGIL_PASSWORD and VIGIL_PASSWORD_HASH.
     if not _is_loopback(settings.host) and not (settings.password or settings.password_hash):
         return _fail(
@@ -312,6 +312,12 @@ def _serve(args: argparse.Namespace) -> int:
             f"refusing to listen on {settings.host} without a password: "
             "set VIGIL_PASSWORD or VIGIL_PASSWORD_HASH (or bind to 127.0.0.1)",
         )
+    try:
+        settings.data_dir.mkdir(parents=True, exist_ok=True)
+        if not os.access(settings.data_dir, os.W_OK | os.X_OK):
+            raise PermissionError(errno.EACCES, "not writable", str(settings.data_dir))
+    except OSError as exc:
+        return _fail("serve", f"cannot use data folder {settings.data_dir}: {exc.strerror}")
     import uvicorn
 
     from app.api.app import create_app

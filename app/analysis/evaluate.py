@@ -38,7 +38,7 @@ def evaluate(out_dir: Path, truth_path: Path) -> dict[str, Any]:
     truth.check_size((width, height))
     boxes = _boxes_by_frame(tracks_path)
     masks_dir = out_dir / "masks"
-    scorer = Scorer(truth, min_area)
+    scorer = Scorer(truth, min_area, (width, height))
     for index in truth.frames:
         if index >= frames:
             continue

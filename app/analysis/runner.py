@@ -16,7 +16,13 @@ from app.analysis.report_html import write_report_html
 from app.analysis.scoring import Scorer
 from app.analysis.truth import Truth, load_truth
 from app.events.alarm import AlarmLogic, MotionEvent
-from app.sources.files import VideoInput, open_input
+from app.sources.files import (
+    MIN_FRAMES,
+    SINGLE_PICTURE,
+    InputError,
+    VideoInput,
+    open_input,
+)
 from app.vision.annotate import Annotator, difference_picture
 from app.vision.calibration import GroundPlane
 from app.vision.detections import Detection
@@ -149,7 +155,7 @@ class _Analysis:
         self.events: list[dict[str, Any]] = []
         self.tracks: dict[int, _TrackSummary] = {}
         self.frame_stats: list[dict[str, Any]] = []
-        self.scoring = Scorer(truth, options.pipeline.min_area) if truth else None
+        self.scoring = Scorer(truth, options.pipeline.min_area, source.size) if truth else None
         self.first_frame: Image | None = None
         self.key_frames: list[dict[str, Any]] = []
 
@@ -175,6 +181,8 @@ class _Analysis:
         finally:
             tracks_csv.close()
             video.close()
+        if frames < MIN_FRAMES:  # A second frame that was there but did not decode.
+            raise InputError(SINGLE_PICTURE.format(path=self.source.path))
         last = self.alarms.finish()
         if last is not None:
             self._close_event(last)

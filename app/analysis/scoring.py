@@ -17,9 +17,11 @@ WARM_UP_FRAMES = 20
 class Scorer:
     """DR/FAR per object per frame, and CDnet pixel metrics when truth is masks."""
 
-    def __init__(self, truth: Truth, min_area: float) -> None:
+    def __init__(self, truth: Truth, min_area: float, size: tuple[int, int]) -> None:
+        """``size``: the input's (width, height), which reported boxes are in."""
         self.truth = truth
         self.min_area = min_area
+        self.size = size
         self.objects, self.objects_warm = ObjectCounts(), ObjectCounts()
         self.pixels, self.pixels_warm = PixelCounts(), PixelCounts()
         self.frames_scored = 0
@@ -30,7 +32,7 @@ class Scorer:
             return
         self.frames_scored += 1
         warm = index >= WARM_UP_FRAMES
-        true_boxes = self.truth.boxes_at(index, self.min_area)
+        true_boxes = self.truth.boxes_at(index, self.min_area, self.size)
         self.objects.add(true_boxes, boxes)
         if warm:
             self.objects_warm.add(true_boxes, boxes)

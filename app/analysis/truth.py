@@ -82,13 +82,18 @@ class Truth:
                     f"the input is {size[0]}x{size[1]}: not the same scene"
                 )
 
-    def boxes_at(self, frame: int, min_area: float = 1.0) -> list[Box]:
-        """True boxes of a frame; from a label mask, its connected moving regions."""
+    def boxes_at(
+        self, frame: int, min_area: float = 1.0, size: tuple[int, int] | None = None
+    ) -> list[Box]:
+        """True boxes of a frame; from a label mask, its connected moving regions, in
+        pixels of an input of ``size`` (width, height) when the labels are at another scale."""
         if frame in self.boxes:
             return self.boxes[frame]
         mask = self.mask(frame)
         if mask is None:
             return []
+        if size is not None and (mask.shape[1], mask.shape[0]) != size:
+            mask = cv2.resize(mask, size, interpolation=cv2.INTER_NEAREST)
         return boxes_from_mask(mask == 255, min_area)
 
 

@@ -7,6 +7,8 @@ from pathlib import Path
 from pydantic import Field
 from pydantic_settings import BaseSettings, SettingsConfigDict
 
+MAX_PORT = 65535
+
 
 class Settings(BaseSettings):
     """What ``vigil serve`` runs with (``VIGIL_PORT=9000``, ``VIGIL_DATA_DIR=/srv/vigil``...)."""
@@ -14,7 +16,7 @@ class Settings(BaseSettings):
     model_config = SettingsConfigDict(env_prefix="VIGIL_", extra="ignore")
 
     host: str = "127.0.0.1"
-    port: int = Field(default=8000, ge=1, le=65535)
+    port: int = Field(default=8000, ge=1, le=MAX_PORT)
     data_dir: Path = Path("data")
     """Holds vigil.db (SQLite), snapshots/ and analyses/."""
     password: str | None = Field(default=None, repr=False)

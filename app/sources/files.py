@@ -22,6 +22,8 @@ DEFAULT_FPS = 25.0
 MAX_FPS = 1000.0
 MIN_FRAMES = 2
 """Motion needs two frames: a still picture (a PNG named .avi) is not a video to analyse."""
+FFMPEG_LOG_QUIET = "-8"
+"""``OPENCV_FFMPEG_LOGLEVEL`` for none of FFmpeg's own messages (AV_LOG_QUIET)."""
 _NUMBER = re.compile(r"(\d+)\D*$")
 
 
@@ -139,7 +141,7 @@ def open_input(path: Path, fps: float | None = None, max_pixels: int | None = No
             raise InputError(f"video has no decodable frames: {path}")
         check_frame_size(first.shape[1], first.shape[0], max_pixels)
         if not capture.grab():
-            raise InputError(_SINGLE_PICTURE.format(path=path))
+            raise InputError(SINGLE_PICTURE.format(path=path))
         rate = fps if fps and 0 < fps <= MAX_FPS else frame_rate(capture)
         claimed = capture.get(cv2.CAP_PROP_FRAME_COUNT)
     finally:
@@ -153,13 +155,15 @@ def open_input(path: Path, fps: float | None = None, max_pixels: int | None = No
     )
 
 
-_SINGLE_PICTURE = (
+SINGLE_PICTURE = (
     "{path} holds only one decodable frame (a picture, not a video?): motion needs at least two"
 )
 
 
 def _open_folder(folder: Path, fps: float | None, max_pixels: int | None) -> VideoInput:
-    if (folder / "input").is_dir() and (folder / "groundtruth").is_dir():
+    if (folder / "input").is_dir() and any(
+        (folder / name).exists() for name in ("groundtruth", "temporalROI.txt")
+    ):
         folder = folder / "input"  # A CDnet sequence: its frames, not its ROI picture.
     try:
         images = sorted(p for p in folder.iterdir() if p.suffix.lower() in IMAGE_SUFFIXES)
@@ -168,7 +172,7 @@ def _open_folder(folder: Path, fps: float | None, max_pixels: int | None) -> Vid
     if not images:
         raise InputError(f"no image frames in folder: {folder}")
     if len(images) < MIN_FRAMES:
-        raise InputError(_SINGLE_PICTURE.format(path=folder))
+        raise InputError(f"{folder} holds only one image: motion needs at least two frames")
     first = cv2.imread(str(images[0]), cv2.IMREAD_COLOR)
     if first is None:
         raise InputError(f"cannot decode image {images[0].name} in {folder}")

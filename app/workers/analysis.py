@@ -207,11 +207,13 @@ class AnalysisManager:
         ]
 
     def _finish(self, analysis_id: str, status: str, error: str | None) -> None:
-        # A failed analysis keeps how far it got.
-        reached = self.progress.pop(analysis_id, 0.0)
+        # A failed analysis keeps how far it got; the row first, so that no reader sees
+        # the analysis running at the progress stored when it started.
+        reached = self.progress.get(analysis_id, 0.0)
         self.db.update_analysis(
             analysis_id, status=status, error=error, finished_at=time.time(), progress=reached
         )
+        self.progress.pop(analysis_id, None)
         self.bus.publish(
             {"type": "status", "analysis_id": analysis_id, "status": status, "error": error}
         )

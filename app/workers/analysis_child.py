@@ -16,6 +16,7 @@ from __future__ import annotations
 
 import argparse
 import json
+import os
 import resource
 import sys
 import time
@@ -74,7 +75,12 @@ def main(argv: list[str] | None = None) -> int:
 
         from app.analysis import runner
         from app.core.atomic import write_atomic
+        from app.sources.files import FFMPEG_LOG_QUIET
         from app.vision.pipeline import PipelineConfig
+
+        # Stdout is this process's message channel, and OpenCV prints FFmpeg's messages
+        # there when they are enabled: they stay off here, whatever the server's setting.
+        os.environ["OPENCV_FFMPEG_LOGLEVEL"] = FFMPEG_LOG_QUIET
 
         config = PipelineConfig(
             method=options.get("method") or PipelineConfig.method,

@@ -43,8 +43,8 @@ _generations = itertools.count(1)
 
 RESTART_DELAY_S = 1.0
 """Wait before starting a camera process that died again (a crash loop stays cheap)."""
-KILLED_JOIN_S = 2.0
-"""How long a killed camera process may take to be reaped."""
+KILLED_WAIT_S = 2.0
+"""How long a killed camera process may take to be gone."""
 
 
 class Camera(Protocol):
@@ -321,8 +321,6 @@ class CameraProcess:
         self._stopping = threading.Event()
         self._conn: Connection | None = None
         self._process: multiprocessing.process.BaseProcess | None = None
-        self._receiver: threading.Thread | None = None
-        """Hears the process, and alone joins it when it ends (see ``wait``)."""
 
     def start(self) -> None:
         context = multiprocessing.get_context("spawn")  # No fork of a threaded server.
@@ -340,7 +338,7 @@ class CameraProcess:
         )
         receiver.start()  # Before the replay: a child can block on a full pipe otherwise.
         with self._lock:  # Replayed whole, before any later command.
-            self._conn, self._process, self._receiver = ours, process, receiver
+            self._conn, self._process = ours, process
             if self._stopping.is_set():
                 self._send_locked(("exit",))
             for camera in self.cameras.values():  # After a restart: the cameras as they were.
@@ -381,20 +379,21 @@ class CameraProcess:
     def wait(self, timeout: float) -> bool:
         """True when the process exited within ``timeout``; else it is killed.
 
-        This waits for the receiver, which joins the process when its pipe closes.
-        Joining it here as well raced the receiver for its exit status, and the loser
-        saw a process already gone as still alive.
+        The receiver joins (reaps) the process when its pipe closes; this only watches
+        the sentinel, which tells of the exit without reaping it. Joining here as well
+        raced the receiver for the exit status, and the loser took a process already
+        gone for one still running.
         """
-        process, receiver = self._process, self._receiver
-        if process is None or receiver is None:
+        with self._lock:
+            process = self._process
+        if process is None:
             return True
-        receiver.join(timeout)
-        if receiver.is_alive():
-            log.warning("camera process %s did not stop in %.1f s: killed", self.index, timeout)
-            process.kill()
-            receiver.join(KILLED_JOIN_S)
-            return False
-        return True
+        if multiprocessing.connection.wait([process.sentinel], timeout):
+            return True
+        log.warning("camera process %s did not stop in %.1f s: killed", self.index, timeout)
+        process.kill()
+        multiprocessing.connection.wait([process.sentinel], KILLED_WAIT_S)
+        return False
 
     def _receive(self, conn: Connection, process: multiprocessing.process.BaseProcess) -> None:
         while True:

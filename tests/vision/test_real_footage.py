@@ -31,7 +31,7 @@ def f_measure(data: Path, sequence: str, method: str) -> float:
     source = open_input(data / input_rel)
     truth = load_truth(data / truth_rel, source.frame_numbers)
     pipeline = Pipeline(PipelineConfig(method=method), fps=source.fps)
-    scorer = Scorer(truth, 100.0)
+    scorer = Scorer(truth, 100.0, source.size)
     for frame in source.frames():
         result = pipeline.process(frame)
         scorer.add(result.index, [d.box for d in result.detections], result.mask)

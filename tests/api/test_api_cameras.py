@@ -4,6 +4,7 @@ from __future__ import annotations
 
 from collections.abc import Callable
 from pathlib import Path
+from typing import Any
 
 import httpx
 
@@ -92,30 +93,26 @@ def test_camera_crud_and_restart(
 
 def test_camera_that_cannot_open_shows_error(serve: Callable[..., Running], tmp_path: Path) -> None:
     server = serve()
-    cam = httpx.post(
-        f"{server.base}/api/cameras",
-        json={"name": "nothing", "source": str(tmp_path / "absent.avi")},
-    ).json()["id"]
-    camera = wait_for(
-        lambda: (
-            (c := httpx.get(f"{server.base}/api/cameras/{cam}").json())["state"] == "error" and c
-        ),
-        10,
-        "the error state",
-    )
+
+    def in_error(source: str) -> tuple[int, dict[str, Any]]:
+        """Add a camera on ``source``; its id and status once it shows ``error``."""
+        added = httpx.post(f"{server.base}/api/cameras", json={"name": "x", "source": source})
+        cam = added.json()["id"]
+        camera = wait_for(
+            lambda: (
+                (c := httpx.get(f"{server.base}/api/cameras/{cam}").json())["state"] == "error"
+                and c
+            ),
+            10,
+            "the error state",
+        )
+        return cam, camera
+
+    cam, camera = in_error(str(tmp_path / "absent.avi"))
     assert "file not found" in camera["reason"]
     frame = httpx.get(f"{server.base}/api/cameras/{cam}/frame.jpg", timeout=10)
     assert frame.status_code == 503 and "error" in frame.json()["detail"]
-    folder = httpx.post(
-        f"{server.base}/api/cameras", json={"name": "folder", "source": str(tmp_path)}
-    ).json()["id"]
-    camera = wait_for(
-        lambda: (
-            (c := httpx.get(f"{server.base}/api/cameras/{folder}").json())["state"] == "error" and c
-        ),
-        10,
-        "the error state",
-    )
+    _, camera = in_error(str(tmp_path))
     assert camera["reason"].startswith(f"a folder, not a video file: {tmp_path}")
 
 

@@ -1,10 +1,11 @@
 """Cameras in worker processes: the process model of ``vigil serve``.
 
-One process with a thread per camera is bound by the GIL at about 16 activated
-640x480 cameras on two cores, two processes carry 32 (``bench/bench_cameras.py``).
-So the cameras run in ``camera_processes`` processes (default: one per CPU),
-each a set of ``CameraWorker`` threads. The server keeps a ``RemoteCamera`` per
-camera with the face the API uses (``Camera``: hub, status, activate, settings).
+One process with a thread per camera is bound by the GIL at about 35 activated
+640x480 cameras on two cores, two processes carry about 50 (``bench/bench_cameras.py``).
+So the cameras run in up to ``camera_processes`` processes (default: one per CPU),
+each a set of ``CameraWorker`` threads, started as cameras need them. The server
+keeps a ``RemoteCamera`` per camera with the face the API uses (``Camera``: hub,
+status, activate, settings).
 A pipe per process carries commands one way and, the other way, status and
 alarm messages and the frames that someone watches (encoded in the camera
 process, only while watched). Each process opens the same SQLite database (WAL)
@@ -345,7 +346,13 @@ class CameraProcess:
                 self._send_locked(camera.start_command(recovering=True))
                 self._send_locked(camera.watch_command())
 
+    @property
+    def started(self) -> bool:
+        return self._process is not None
+
     def add(self, camera: RemoteCamera) -> None:
+        if not self.started:
+            self.start()
         with self._lock:
             self.cameras[camera.camera_id] = camera
             self._send_locked(camera.start_command())

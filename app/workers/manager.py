@@ -21,16 +21,19 @@ class CameraManager:
         self._changing = threading.RLock()
 
     def start_all(self, cameras: Iterable[dict[str, Any]]) -> None:
-        for process in self._processes:
-            process.start()
         for camera in cameras:
             self.start(camera)
 
     def start(self, camera: dict[str, Any]) -> RemoteCamera:
-        """Run a camera (again, with its new row, if it runs already) in the least busy process."""
+        """Run a camera (again, with its new row, if it runs already) in the least busy process.
+
+        A process starts with its first camera: cameras spread one to a process up to
+        the number of processes, and a server with fewer cameras than CPUs does not
+        keep idle processes (tens of MB each).
+        """
         with self._changing:  # Two PATCHes of one camera must not leave two workers.
             self.remove(camera["id"])
-            process = min(self._processes, key=lambda p: len(p.cameras))
+            process = min(self._processes, key=lambda p: (len(p.cameras), not p.started))
             remote = RemoteCamera(camera, process)
             with self._lock:
                 self._cameras[camera["id"]] = remote

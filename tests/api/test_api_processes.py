@@ -43,6 +43,22 @@ def test_cameras_are_spread_over_the_processes_and_each_raises_alarms(
     assert len(_camera_processes()) == 2
 
 
+def test_camera_processes_start_with_their_first_camera(serve: Callable[..., Running]) -> None:
+    server = serve(camera_processes=3)
+    assert _camera_processes() == []  # No camera yet: no idle process either.
+    first = add_camera(server.base, "demo", "one")
+    wait_for(lambda: len(_camera_processes()) == 1, 10, "one camera process")
+    second = add_camera(server.base, "demo", "two")
+    wait_for(lambda: len(_camera_processes()) == 2, 10, "a second camera process")
+    assert [_camera(server.base, cam)["process"] for cam in (first, second)] == [0, 1]
+    # A running process left without cameras takes the next one; no third is started.
+    assert httpx.delete(f"{server.base}/api/cameras/{first}").status_code == 204
+    third = add_camera(server.base, "demo", "three")
+    assert _camera(server.base, third)["process"] == 0
+    wait_for(lambda: _camera(server.base, third)["state"] == "live", 10, "the third camera")
+    assert len(_camera_processes()) == 2
+
+
 def test_a_camera_process_that_dies_is_restarted_with_its_cameras(
     serve: Callable[..., Running], motion_video: Path
 ) -> None:

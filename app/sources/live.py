@@ -70,6 +70,16 @@ def parse_source(text: str) -> SourceSpec:
     return SourceSpec("file", raw, raw)
 
 
+def without_password(text: str) -> str:
+    """``text`` with a URL's password replaced by ``***``, for logs."""
+    parsed = urlparse(text)
+    userinfo, at, host = parsed.netloc.rpartition("@")
+    if not at or ":" not in userinfo:
+        return text
+    user = userinfo.split(":", 1)[0]
+    return parsed._replace(netloc=f"{user}:***@{host}").geturl()
+
+
 class FrameSource(Protocol):
     fps: float
     paced: bool

@@ -20,7 +20,13 @@ import cv2
 from app.core.config import Settings
 from app.events.alarm import AlarmLogic, MotionEvent
 from app.sources.frames import FrameError, SourceFrame
-from app.sources.live import FrameSource, SourceError, open_source, parse_source
+from app.sources.live import (
+    FrameSource,
+    SourceError,
+    open_source,
+    parse_source,
+    without_password,
+)
 from app.storage.db import Database
 from app.storage.files import SnapshotStore
 from app.vision.annotate import difference_picture
@@ -159,7 +165,9 @@ class CameraWorker:
             self._failed(str(exc), backoff)
             return min(backoff * 2, self.settings.reconnect_max_s)
         except (cv2.error, OSError) as exc:
-            log.exception("camera %s: cannot open %s", self.camera_id, self.source_text)
+            log.exception(
+                "camera %s: cannot open %s", self.camera_id, without_password(self.source_text)
+            )
             self._failed(f"cannot open source: {exc}", backoff)
             return min(backoff * 2, self.settings.reconnect_max_s)
         self._source = source

@@ -14,6 +14,7 @@ from app.sources.live import (
     SourceError,
     open_source,
     parse_source,
+    without_password,
 )
 from tests.api.vigil_livekit import FPS, MjpegCamera, write_video
 
@@ -42,6 +43,20 @@ def test_parse_source(text: str, kind: str, target: str) -> None:
 def test_parse_source_rejects(text: str) -> None:
     with pytest.raises(ValueError):
         parse_source(text)
+
+
+@pytest.mark.parametrize(
+    ("source", "logged"),
+    [
+        ("rtsp://admin:s3cret@10.0.0.5:554/live", "rtsp://admin:***@10.0.0.5:554/live"),
+        ("http://u:p%40ss:word@cam/video.mjpg?x=1", "http://u:***@cam/video.mjpg?x=1"),
+        ("http://viewer@cam/video.mjpg", "http://viewer@cam/video.mjpg"),
+        ("rtsp://cam/live", "rtsp://cam/live"),
+        ("/videos/yard.avi", "/videos/yard.avi"),
+    ],
+)
+def test_passwords_stay_out_of_logs(source: str, logged: str) -> None:
+    assert without_password(source) == logged
 
 
 def test_demo_loops_with_motion() -> None:

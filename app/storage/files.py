@@ -58,7 +58,6 @@ class SnapshotStore:
             write_atomic(self.root / relative, data, durable=True)
         except OSError as exc:
             with self._lock:
-                self._failures.pop(camera_id, None)  # The newest failure last, for ``error``.
                 self._failures[camera_id] = describe_write_error(exc)
             raise
         with self._lock:
@@ -69,12 +68,6 @@ class SnapshotStore:
         """Why the camera's last snapshot could not be written; None once one succeeds."""
         with self._lock:
             return self._failures.get(camera_id)
-
-    @property
-    def error(self) -> str | None:
-        """The newest failure of any camera still failing, None when all is well."""
-        with self._lock:
-            return next(reversed(self._failures.values()), None)
 
     def path(self, relative: str) -> Path:
         resolved = (self.root / relative).resolve()

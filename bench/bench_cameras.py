@@ -82,6 +82,7 @@ GUESS_SHARE = 0.8
 START_LEAD_S = 0.3
 """Between 'every worker process is ready' and the common start time."""
 STOP_TIMEOUT_S = 5.0
+MOTION_EXTRA_WARMUP_S = 1.0
 
 
 @dataclass(frozen=True)
@@ -513,10 +514,11 @@ def motion_config(clips: Sequence[Path], folder: Path) -> Path:
     ]
     if len(cameras) == 1:
         lines += cameras[0]
-    for index, camera in enumerate(cameras if len(cameras) > 1 else []):
-        path = folder / f"motion-camera-{index + 1}.conf"
-        path.write_text("\n".join([*camera, f"camera_id {index + 1}", "stream_port 0"]) + "\n")
-        lines.append(f"camera {path}")
+    else:
+        for number, camera in enumerate(cameras, start=1):
+            path = folder / f"motion-camera-{number}.conf"
+            path.write_text("\n".join([*camera, f"camera_id {number}", "stream_port 0"]) + "\n")
+            lines.append(f"camera {path}")
     (folder / "out").mkdir(exist_ok=True)
     path = folder / "motion.conf"
     path.write_text("\n".join(lines) + "\n")
@@ -531,8 +533,10 @@ class MotionRun:
 
 
 def measure_motion(clips: Sequence[Path], folder: Path, windows: Windows) -> MotionRun:
-    """Motion's CPU over each window with a camera per clip, frames taken as window x FPS
-    per camera (it paces itself)."""
+    """Motion's CPU over each of Vigil's ``windows`` with a camera per clip, frames taken
+    as window x FPS per camera (it paces itself), after a warm-up a second longer (its
+    cameras connect once it has started)."""
+    windows = Windows(windows.warmup + MOTION_EXTRA_WARMUP_S, windows.length, windows.count)
     config = motion_config(clips, folder)
     proc = subprocess.Popen(
         [str(MOTION), "-n", "-c", str(config)],
@@ -616,9 +620,7 @@ def measure_cpu(args: argparse.Namespace, clips: Sequence[Path], tmp: Path) -> C
     paced = measure_paced(clips[0], tmp, windows)
     motion: MotionRun | None = None
     if MOTION.is_file():
-        motion = measure_motion(
-            clips[:1], tmp, Windows(args.warmup + 1, windows.length, windows.count)
-        )
+        motion = measure_motion(clips[:1], tmp, windows)
     print_paced(args, paced, motion)
     measure_at_load(args, clips, tmp, windows)
     one = {row.trial.mode: row for row in paced if row.cv_threads == 1}
@@ -650,9 +652,7 @@ def measure_at_load(
     ]
     if MOTION.is_file():
         played = [clips[i % len(clips)] for i in range(AT_LOAD_CAMERAS)]
-        motion = measure_motion(
-            played, tmp, Windows(args.warmup + 1, windows.length, windows.count)
-        )
+        motion = measure_motion(played, tmp, windows)
         rows.append(
             [
                 f"Motion {motion_version()}, {AT_LOAD_CAMERAS} cameras",
@@ -672,6 +672,10 @@ def measure_at_load(
     motion_ms = median(motion.ms_per_frame)
     print(f"Vigil / Motion at load, CPU per frame: {fmt(vigil_ms[0] / motion_ms, 2)}")
     print(f"  the same with {CHEAPEST_METHOD}: {fmt(vigil_ms[1] / motion_ms, 2)}")
+    print_motion_problems(motion)
+
+
+def print_motion_problems(motion: MotionRun) -> None:
     if motion.log_problems:
         print("Motion log errors/warnings:", *motion.log_problems[:5], sep="\n    ")
 
@@ -725,20 +729,14 @@ def print_paced(args: argparse.Namespace, paced: list[PacedRow], motion: MotionR
     if motion is None:
         print(f"Motion: skipped, {MOTION} is absent (Debian: apt-get install motion)")
         return
-    ratios = ", ".join(
-        f"{fmt(row.ms / motion_ms, 2)} with OpenCV {row.threads}"
-        for row in paced
-        if row.trial.mode == ACTIVE
-    )
-    print(f"Vigil activated unwatched / Motion, CPU per frame: {ratios}")
-    floors = ", ".join(
-        f"{fmt(row.ms / motion_ms, 2)} with OpenCV {row.threads}"
-        for row in paced
-        if row.trial.mode == ACTIVE_CHEAPEST
-    )
-    print(f"  the same with {CHEAPEST_METHOD} (every stage but the model): {floors}")
-    if motion.log_problems:
-        print("Motion log errors/warnings:", *motion.log_problems[:5], sep="\n    ")
+    for mode, label in ((ACTIVE, "Vigil activated unwatched"), (ACTIVE_CHEAPEST, "  the same")):
+        ratios = ", ".join(
+            f"{fmt(row.ms / motion_ms, 2)} with OpenCV {row.threads}"
+            for row in paced
+            if row.trial.mode == mode
+        )
+        print(f"{label} ({mode.method}) / Motion, CPU per frame: {ratios}")
+    print_motion_problems(motion)
 
 
 # --- (b) cameras per process model --------------------------------------------------------

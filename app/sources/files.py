@@ -22,6 +22,9 @@ DEFAULT_FPS = 25.0
 MAX_FPS = 1000.0
 MIN_FRAMES = 2
 """Motion needs two frames: a still picture (a PNG named .avi) is not a video to analyse."""
+SINGLE_PICTURE = (
+    "{path} holds only one decodable frame (a picture, not a video?): motion needs at least two"
+)
 FFMPEG_LOG_QUIET = "-8"
 """``OPENCV_FFMPEG_LOGLEVEL`` for none of FFmpeg's own messages (AV_LOG_QUIET)."""
 _NUMBER = re.compile(r"(\d+)\D*$")
@@ -153,11 +156,6 @@ def open_input(path: Path, fps: float | None = None, max_pixels: int | None = No
         # The header's count is informational and may be anything, NaN included.
         header_frames=int(claimed) if math.isfinite(claimed) and claimed > 0 else None,
     )
-
-
-SINGLE_PICTURE = (
-    "{path} holds only one decodable frame (a picture, not a video?): motion needs at least two"
-)
 
 
 def _open_folder(folder: Path, fps: float | None, max_pixels: int | None) -> VideoInput:

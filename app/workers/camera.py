@@ -280,8 +280,9 @@ class CameraWorker:
         with self._lock:
             pending, self._pending = self._pending, {}
             want_active = self._want_active
-        old = dict(self._config)
-        self._config.update(pending)
+        old = self._config
+        if pending:  # Rarely: no copy on the frames without.
+            self._config = {**old, **pending}
         if want_active and self._pipeline is None:
             self._pipeline = self._new_pipeline(fps)
             self._alarms = AlarmLogic(self.settings.quiet_s, self.settings.alarm_gap_s)

@@ -164,12 +164,14 @@ def run_cameras(conn: Connection, settings: Settings) -> None:
     logging.basicConfig(level=logging.INFO, format="%(levelname)s %(name)s: %(message)s")
     if settings.opencv_threads:
         cv2.setNumThreads(settings.opencv_threads)
+    # A process starts with its first camera (CameraProcess.add): load the detection
+    # kernels now, beside it, so its first activated frame does not wait for them.
+    threading.Thread(target=warm_up, name="warm-up", daemon=True).start()
     link = _Link(conn)
     db = Database(settings.db_path)
     snapshots = SnapshotStore(settings.snapshots_dir)
     sender = _FrameSender(link)
     workers: dict[int, CameraWorker] = {}
-    warmed = False
 
     def remove(camera_id: int) -> None:
         worker = workers.pop(camera_id, None)
@@ -187,11 +189,6 @@ def run_cameras(conn: Connection, settings: Settings) -> None:
                 return
             if op == "start":
                 row, generation, recovering = args
-                if not warmed:
-                    # Load the detection kernels before this camera is activated, but
-                    # only in a process that has a camera: an idle one stays small.
-                    threading.Thread(target=warm_up, name="warm-up", daemon=True).start()
-                    warmed = True
                 remove(row["id"])
                 worker_link = _WorkerLink(link, generation)
                 if recovering:  # The process before this one died with its events open.

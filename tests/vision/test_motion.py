@@ -1,7 +1,6 @@
 import os
 import subprocess
 import sys
-from pathlib import Path
 
 import numpy as np
 import pytest
@@ -9,6 +8,7 @@ import pytest
 from app.vision.motion import METHODS, create_method
 from app.vision.motion.adaptive_background import AdaptiveBackground
 from app.vision.motion.frame_difference import FrameDifference
+from tests.conftest import ROOT
 
 SIZE = (120, 160)
 
@@ -161,7 +161,7 @@ def test_adaptive_works_where_no_cache_folder_is_writable(tmp_path):
     )
     env = {
         **os.environ,
-        "PYTHONPATH": os.pathsep.join([str(tmp_path), str(Path.cwd())]),
+        "PYTHONPATH": os.pathsep.join([str(tmp_path), str(ROOT)]),
         "NUMBA_CACHE_LOCATOR_CLASSES": "nowhere.Nowhere",
     }
     run = subprocess.run(

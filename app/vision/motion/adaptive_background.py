@@ -71,8 +71,9 @@ class _Buffers:
     """8-bit working images, kept from frame to frame rather than allocated afresh."""
 
     def __init__(self, shape: tuple[int, ...]) -> None:
-        self.main = np.empty(shape, np.uint8)
-        self.alternate = np.empty(shape, np.uint8)
+        # |frame - mode| for the main and the alternate mode.
+        self.main_difference = np.empty(shape, np.uint8)
+        self.alternate_difference = np.empty(shape, np.uint8)
         self.limit = np.empty(shape, np.uint8)
         self.changing = np.empty(shape, np.uint8)
         self.lowest = np.empty(shape, np.uint8)
@@ -158,8 +159,8 @@ class AdaptiveBackground(MotionMethod):
             self._weight,
             self._gain(gray),
             established_weight,
-            buffers.main,
-            buffers.alternate,
+            buffers.main_difference,
+            buffers.alternate_difference,
             difference,
         )
         self.noise.update(difference)
@@ -196,8 +197,8 @@ class AdaptiveBackground(MotionMethod):
             gray,
             self._previous_gray,
             difference,
-            buffers.main,
-            buffers.alternate,
+            buffers.main_difference,
+            buffers.alternate_difference,
             per_pixel,
             grown_strong,
             raw,

@@ -21,6 +21,7 @@ from __future__ import annotations
 import math
 from collections import deque
 from dataclasses import dataclass, field, replace
+from typing import Any
 
 import numpy as np
 from scipy.optimize import linear_sum_assignment
@@ -29,6 +30,11 @@ from app.vision.detections import Box, Detection
 from app.vision.kinematics import fit_velocity, speed
 
 Point = tuple[float, float]
+
+DISALLOWED = 1e9
+"""The cost of a pair outside the gate, for the assignment solver."""
+SMALL_ASSIGNMENT = 64
+"""Up to this many (detection, track) pairs, the gate is checked in plain Python."""
 
 
 @dataclass
@@ -138,26 +144,63 @@ class Tracker:
             return [], []
         if not tracks:
             return [], list(range(len(detections)))
+        allowed = (
+            self._allowed_pairs(detections, tracks, predictions)
+            if len(detections) * len(tracks) <= SMALL_ASSIGNMENT
+            else self._allowed_pairs_vectorised(detections, tracks, predictions)
+        )
+        rows = [d for d, _, _ in allowed]
+        cols = [t for _, t, _ in allowed]
+        if len(set(rows)) < len(rows) or len(set(cols)) < len(cols):
+            # Rivals: the pairing with the least total distance among the allowed ones.
+            costs = np.full((len(detections), len(tracks)), DISALLOWED)
+            for d_index, t_index, cost in allowed:
+                costs[d_index, t_index] = cost
+            best_rows, best_cols = linear_sum_assignment(costs)
+            keep = costs[best_rows, best_cols] < DISALLOWED
+            rows, cols = best_rows[keep].tolist(), best_cols[keep].tolist()
+        # Otherwise no detection or track has a rival: every allowed pair is the best.
+        matched_rows = set(rows)
+        matches = [(r, tracks[c]) for r, c in zip(rows, cols, strict=True)]
+        return matches, [i for i in range(len(detections)) if i not in matched_rows]
+
+    def _gate(self, size: Any, missed: Any) -> Any:
+        """How far a detection may be from a track's prediction (floats or arrays): the
+        gate widens with the object's size and with each frame it went unseen."""
+        return self.config.gate_px + size * (0.5 + 0.25 * missed)
+
+    def _allowed_pairs(
+        self, detections: list[Detection], tracks: list[Track], predictions: list[Point]
+    ) -> list[tuple[int, int, float]]:
+        """(detection, track, distance) within the gate, in plain Python: a frame has a
+        handful of objects, where NumPy's per-call overhead (a dozen calls) costs several
+        times the arithmetic on a camera gone cold."""
+        track_sizes = [max(t.box.w, t.box.h) for t in tracks]
+        allowed = []
+        for d_index, detection in enumerate(detections):
+            x, y = detection.centroid
+            detection_size = max(detection.box.w, detection.box.h)
+            for t_index, (px, py) in enumerate(predictions):
+                cost = math.hypot(x - px, y - py)
+                size = max(detection_size, track_sizes[t_index])
+                if cost <= self._gate(size, tracks[t_index].missed):
+                    allowed.append((d_index, t_index, cost))
+        return allowed
+
+    def _allowed_pairs_vectorised(
+        self, detections: list[Detection], tracks: list[Track], predictions: list[Point]
+    ) -> list[tuple[int, int, float]]:
+        """The same for a crowded frame (noise, many coasting tracks), with NumPy."""
         det_xy = np.array([d.centroid for d in detections])
         det_size = np.array([max(d.box.w, d.box.h) for d in detections], dtype=np.float64)
         track_size = np.array([max(t.box.w, t.box.h) for t in tracks], dtype=np.float64)
         missed = np.array([t.missed for t in tracks], dtype=np.float64)
         offset = det_xy[:, None, :] - np.array(predictions)[None, :, :]
         cost = np.hypot(offset[..., 0], offset[..., 1])
-        # The gate widens with the object's size and with each frame it went unseen.
         size = np.maximum(det_size[:, None], track_size[None, :])
-        gate = self.config.gate_px + size * (0.5 + 0.25 * missed[None, :])
-        allowed = cost <= gate
-        if allowed.sum(axis=0).max() <= 1 and allowed.sum(axis=1).max() <= 1:
-            # No detection or track has a rival: every allowed pair is the best assignment.
-            rows, cols = np.nonzero(allowed)
-        else:
-            rows, cols = linear_sum_assignment(np.where(allowed, cost, 1e9))
-            keep = allowed[rows, cols]
-            rows, cols = rows[keep], cols[keep]
-        matches = [(int(r), tracks[int(c)]) for r, c in zip(rows, cols, strict=True)]
-        matched_rows = set(rows.tolist())
-        return matches, [i for i in range(len(detections)) if i not in matched_rows]
+        rows, cols = np.nonzero(cost <= self._gate(size, missed[None, :]))
+        pairs = zip(rows.tolist(), cols.tolist(), strict=True)
+        return [(d, t, float(cost[d, t])) for d, t in pairs]
 
     def _split_merged(
         self, detections: list[Detection], tracks: list[Track], predictions: list[Point]

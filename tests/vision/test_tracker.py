@@ -3,7 +3,7 @@ import math
 import pytest
 
 from app.vision.detections import Box, Detection
-from app.vision.tracker import Tracker, TrackerConfig
+from app.vision.tracker import SMALL_ASSIGNMENT, Tracker, TrackerConfig
 
 FPS = 10.0
 
@@ -26,6 +26,30 @@ def test_ids_persist_and_speed_is_distance_times_frame_rate():
     last = out[-1][0]
     assert last.distance_px == pytest.approx(3.0)
     assert last.speed_px_s == pytest.approx(30.0, rel=0.01)
+
+
+@pytest.mark.parametrize("objects", [3, 12])
+def test_a_crowd_keeps_its_ids_and_speeds(objects):
+    """A few objects (each pairing checked one by one) and a crowd (past
+    SMALL_ASSIGNMENT pairs, checked all at once): the same ids and speeds either way."""
+    assert 3 * 3 <= SMALL_ASSIGNMENT < 12 * 12
+    tracker = Tracker()
+    # Rows 60 px apart; each object moves 2 px/frame right and 1, 2 or 3 px/frame down.
+    drops = [1 + row % 3 for row in range(objects)]
+    frames = [
+        [det(10 + 2 * i, 60 * row + drops[row] * i) for row in range(objects)] for i in range(15)
+    ]
+    out = run(tracker, frames)
+    assert [len(frame) for frame in out[1:]] == [objects] * 14
+    row_of = {d.track_id: round(d.box.y / 60) for d in out[1]}
+    assert sorted(row_of.values()) == list(range(objects))
+    for frame in out[2:]:
+        for d in frame:
+            step = math.hypot(2, drops[row_of[d.track_id]])
+            assert d.distance_px == pytest.approx(step, abs=0.6)  # Boxes snap to pixels.
+    for d in out[-1]:
+        step = math.hypot(2, drops[row_of[d.track_id]])
+        assert d.speed_px_s == pytest.approx(step * FPS, rel=0.01)
 
 
 def test_two_objects_crossing_keep_their_ids():

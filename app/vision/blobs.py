@@ -29,6 +29,8 @@ class BlobExtractor:
         detections = []
         for contour in contours:
             x, y, w, h = cv2.boundingRect(contour)
+            if w * h * area_scale < self.min_area:
+                continue  # Not even its whole box would be large enough.
             moments = cv2.moments(contour)
             # A contour's polygon area undercounts thin blobs; the filled box
             # bounds it from above. Pixel count sits between: take the mask's.

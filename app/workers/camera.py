@@ -124,21 +124,21 @@ class CameraWorker:
             self._pending.update({k: v for k, v in changes.items() if k in SETTING_FIELDS})
 
     def status(self) -> dict[str, Any]:
-        return {
-            "camera_id": self.camera_id,
-            "state": self.state,
-            "reason": self.reason,
-            "fps": round(self.fps, 2),
-            "source_fps": self.source_fps,
-            "active": self._want_active,
-            "frames": self.frames,
-            "viewers": self.hub.viewers,
-            "processed": self.processed,
-            "objects": self.objects,
-            "motion": round(self.motion, 5),
-            "threshold": None if self.threshold is None else round(self.threshold, 1),
-            "last_alarm": self.last_alarm,
-        }
+        return status_fields(
+            self.camera_id,
+            state=self.state,
+            reason=self.reason,
+            fps=self.fps,
+            source_fps=self.source_fps,
+            active=self._want_active,
+            frames=self.frames,
+            viewers=self.hub.viewers,
+            processed=self.processed,
+            objects=self.objects,
+            motion=self.motion,
+            threshold=self.threshold,
+            last_alarm=self.last_alarm,
+        )
 
     # The thread ---------------------------------------------------------------------------
 
@@ -423,6 +423,41 @@ class CameraWorker:
         self._last_status = time.monotonic()
         message = {"type": "status", **self.status()}
         self.bus.publish(message)
+
+
+def status_fields(
+    camera_id: int,
+    *,
+    state: str = "connecting",
+    reason: str = "",
+    fps: float = 0.0,
+    source_fps: float | None = None,
+    active: bool = False,
+    frames: int = 0,
+    viewers: int = 0,
+    processed: int = 0,
+    objects: int = 0,
+    motion: float = 0.0,
+    threshold: float | None = None,
+    last_alarm: float | None = None,
+) -> dict[str, Any]:
+    """A camera's status as the API and ``status`` messages show it; the defaults are a
+    new camera's, before its first frame."""
+    return {
+        "camera_id": camera_id,
+        "state": state,
+        "reason": reason,
+        "fps": round(fps, 2),
+        "source_fps": source_fps,
+        "active": active,
+        "frames": frames,
+        "viewers": viewers,
+        "processed": processed,
+        "objects": objects,
+        "motion": round(motion, 5),
+        "threshold": None if threshold is None else round(threshold, 1),
+        "last_alarm": last_alarm,
+    }
 
 
 def motion_end_message(

@@ -35,7 +35,7 @@ from app.storage.files import SnapshotStore
 from app.vision.motion.adaptive_background import warm_up
 from app.workers.analysis import signal_label
 from app.workers.bus import EventBus
-from app.workers.camera import CameraWorker, motion_end_message
+from app.workers.camera import CameraWorker, motion_end_message, status_fields
 from app.workers.hub import FrameHub, Kind, Picture, SentFrame
 
 log = logging.getLogger("vigil.cameras")
@@ -248,19 +248,8 @@ class RemoteCamera:
         self.hub.on_watch = self._send_watching
         self.storage_error: str | None = None
         self._seq = 0  # The server numbers frames: a restarted process starts again at 1.
-        self._status: dict[str, Any] = {  # Until the camera process reports.
-            "camera_id": self.camera_id,
-            "state": "connecting",
-            "reason": "",
-            "fps": 0.0,
-            "source_fps": None,
-            "frames": 0,
-            "processed": 0,
-            "objects": 0,
-            "motion": 0.0,
-            "threshold": None,
-            "last_alarm": None,
-        }
+        # Until the camera process reports: a new camera's.
+        self._status: dict[str, Any] = status_fields(self.camera_id)
 
     @property
     def state(self) -> str:

@@ -12,6 +12,7 @@ from fastapi import HTTPException, Request
 from starlette.requests import HTTPConnection
 
 from app.core.config import Settings
+from app.sources.live import without_password
 from app.storage.db import Database
 from app.storage.files import SnapshotStore, prune, prune_to_size
 from app.vision.motion import DEFAULT_METHOD
@@ -145,7 +146,8 @@ class Services:
             self.db.close()
 
     def camera_view(self, camera: dict[str, Any]) -> dict[str, Any]:
-        """A camera as the API shows it: its settings, its live state and its URLs."""
+        """A camera as the API shows it: its settings (the source ``without_password``), its
+        live state and its URLs."""
         worker = self.cameras.get(camera["id"])
         status = worker.status() if worker else {"state": "stopped", "reason": "", "fps": 0.0}
         status.pop("camera_id", None)
@@ -153,6 +155,7 @@ class Services:
         return {
             **camera,
             **status,
+            "source": without_password(camera["source"]),
             "active": camera["active"],
             "stream": f"{base}/stream.mjpg",
             "histogram": f"{base}/histogram.mjpg",

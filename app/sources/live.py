@@ -12,6 +12,7 @@ FFmpeg hands over the camera's own JPEGs, decoded later only as far as needed
 from __future__ import annotations
 
 import re
+from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Literal, Protocol
@@ -53,7 +54,7 @@ def parse_source(text: str) -> SourceSpec:
         return SourceSpec("rtsp", raw, raw)
     if lowered.startswith(("http://", "https://")):
         if not urlparse(raw).hostname:
-            raise ValueError(f"URL has no host: {raw}")
+            raise ValueError(f"URL has no host: {without_password(raw)}")
         return SourceSpec("http", raw, raw)
     if lowered.startswith("file://"):
         parsed = urlparse(raw)
@@ -70,14 +71,125 @@ def parse_source(text: str) -> SourceSpec:
     return SourceSpec("file", raw, raw)
 
 
-def without_password(text: str) -> str:
-    """``text`` with a URL's password replaced by ``***``, for logs."""
-    parsed = urlparse(text)
-    userinfo, at, host = parsed.netloc.rpartition("@")
-    if not at or ":" not in userinfo:
+MASK = "***"
+"""What logs and the API show in place of a source's password (``without_password``)."""
+
+SECRET_PARAMS = ("password", "passwd", "pass", "pwd")
+"""Query parameters that carry a camera's password (``/video.cgi?user=admin&pwd=...``)."""
+
+_URL = re.compile(
+    r"(?P<scheme>[A-Za-z][A-Za-z0-9+.-]*://)(?P<authority>[^/?#]*)(?P<path>[^?#]*)"
+    r"(?P<query>\?[^#]*)?(?P<fragment>#.*)?",
+    re.DOTALL,
+)
+"""A URL cut where ``urllib.parse.urlsplit`` cuts it (and FFmpeg: the authority ends at the
+first ``/``, ``?`` or ``#``), so that putting the parts together gives the text back."""
+_SECRET_PARAM = re.compile(
+    rf"(?P<head>[?&](?P<name>{'|'.join(SECRET_PARAMS)})=)(?P<value>[^&]*)", re.IGNORECASE
+)
+
+
+def _edit_passwords(text: str, edit: Callable[[str, str], str]) -> str:
+    """``text`` with each password in it replaced by ``edit(place, password)``.
+
+    A password is the one of the URL's user information (``scheme://user:password@host``,
+    ``place`` ``"userinfo"``; split at the last ``@`` and the first ``:``) or the value of
+    a query parameter named in ``SECRET_PARAMS`` (``place`` ``"?"`` and its name in lower
+    case). Everything else, and any text that is not a URL, stays as it is, character for
+    character.
+    """
+    url = _URL.fullmatch(text)
+    if url is None:
         return text
-    user = userinfo.split(":", 1)[0]
-    return parsed._replace(netloc=f"{user}:***@{host}").geturl()
+    authority = url["authority"]
+    userinfo, at, host = authority.rpartition("@")
+    if at and ":" in userinfo:
+        user, _, password = userinfo.partition(":")
+        authority = f"{user}:{edit('userinfo', password)}@{host}"
+    query = url["query"] or ""
+    if query:
+        query = _SECRET_PARAM.sub(
+            lambda m: m["head"] + edit("?" + m["name"].lower(), m["value"]), query
+        )
+    return url["scheme"] + authority + url["path"] + query + (url["fragment"] or "")
+
+
+def _passwords(text: str) -> list[tuple[str, str]]:
+    """Where ``text`` holds a password, and the password, in order (see ``_edit_passwords``)."""
+    found: list[tuple[str, str]] = []
+
+    def note(place: str, password: str) -> str:
+        found.append((place, password))
+        return password
+
+    _edit_passwords(text, note)
+    return found
+
+
+def _endpoint(text: str) -> tuple[str, str, str] | None:
+    """Whom a URL's password goes to: its scheme, user and host with port (None: no URL)."""
+    url = _URL.fullmatch(text)
+    if url is None:
+        return None
+    userinfo, _, host = url["authority"].rpartition("@")
+    return url["scheme"].lower(), userinfo.partition(":")[0], host.lower()
+
+
+def without_password(text: str) -> str:
+    """``text`` with its passwords replaced by ``MASK``: a source as logs and the API show it.
+
+    ``rtsp://admin:secret@10.0.0.5/stream`` gives ``rtsp://admin:***@10.0.0.5/stream`` (the
+    user is kept), ``http://cam/video.cgi?user=admin&pwd=secret`` gives ``...&pwd=***``;
+    a source without a password (``demo``, ``0``, ``/dev/video0``, ``file:///x.avi``,
+    ``rtsp://admin@cam/live``) comes back unchanged.
+    """
+    return _edit_passwords(text, lambda place, password: MASK)
+
+
+def has_masked_password(text: str) -> bool:
+    """Whether a password in ``text`` reads ``MASK``: a source copied as the API shows it."""
+    return any(password == MASK for _, password in _passwords(text))
+
+
+def with_stored_password(source: str, stored: str) -> str:
+    """The source to keep when ``source`` is sent for a camera whose source is ``stored``.
+
+    The API shows ``without_password(stored)``, so a form or a script sends back what
+    it was shown, and that must not replace the password with ``MASK``:
+
+    - ``source`` is ``without_password(stored)`` (or ``stored``): ``stored``, unchanged.
+    - No password in ``source`` reads ``MASK``: a new source, taken as it is.
+    - A password reads ``MASK`` and the rest changed (another stream path, say): the
+      stored password is put back in its place, if ``source`` goes to the same scheme,
+      user, host and port as ``stored`` and ``stored`` has a password in that place. A
+      password is never sent to another server than the one it was given for, so moving
+      a camera to another address means typing its password.
+    - Otherwise ``ValueError`` saying why (without the password).
+
+    A password that really is ``***`` is written percent-encoded: ``%2A%2A%2A``.
+    """
+    if source in (stored, without_password(stored)):
+        return stored
+    masked = {place for place, password in _passwords(source) if password == MASK}
+    if not masked:
+        return source
+    shown = without_password(stored)
+    if _endpoint(source) != _endpoint(stored):
+        raise ValueError(
+            f"{MASK} stands for the stored password, which goes only to the scheme, user, "
+            f"host and port it was given for ({shown}): type the password for this source"
+        )
+    known: dict[str, str] = {}
+    for place, password in _passwords(stored):
+        known.setdefault(place, password)
+    if not masked <= known.keys():
+        raise ValueError(
+            f"{MASK} stands for a stored password, but the camera's source ({shown}) has "
+            "none in that place: type the password"
+        )
+    return _edit_passwords(
+        source, lambda place, password: known[place] if password == MASK else password
+    )
 
 
 class FrameSource(Protocol):

@@ -1,14 +1,17 @@
-"""Health, the page, camera CRUD, persistence across restarts, the demo camera."""
+"""Health, the page, camera CRUD, persistence across restarts, the demo camera, passwords
+in camera sources."""
 
 from __future__ import annotations
 
+import json
 from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
 import httpx
 
-from tests.api.vigil_livekit import Running, wait_for
+from app.storage import Database
+from tests.api.vigil_livekit import MjpegCamera, Running, WsClient, wait_for
 
 
 def test_health_and_page(serve: Callable[..., Running]) -> None:
@@ -143,3 +146,88 @@ def test_ignore_zones_persist_and_bad_ones_are_refused(
     assert httpx.get(f"{again.base}/api/cameras/{cam_id}").json()["mask"] == zone
     cleared = httpx.patch(f"{again.base}/api/cameras/{cam_id}", json={"mask": None}).json()
     assert cleared["mask"] == []
+
+
+def test_source_passwords_are_never_shown(serve: Callable[..., Running], tmp_path: Path) -> None:
+    """A camera that needs its password: the API, the page and /ws show it masked, the
+    worker gets it, and a PATCH that sends the source back as shown keeps it."""
+    password = "s3cret-Pw"
+    camera = MjpegCamera(auth=("admin", password)).start()
+    data = tmp_path / "data"
+    server = serve(data)
+    base = server.base
+    host = f"127.0.0.1:{camera.port}"
+    real, shown = (f"http://admin:{p}@{host}/video.mjpg" for p in (password, "***"))
+
+    def stored(cam: int) -> str:
+        db = Database(data / "vigil.db")
+        try:
+            row = db.camera(cam)
+            assert row is not None
+            return str(row["source"])
+        finally:
+            db.close()
+
+    def live_again(ws: WsClient, cam: int, before: int) -> None:
+        """A status ``live`` for ``cam`` on /ws after the first ``before``: it opened."""
+        wait_for(
+            lambda: len(ws.of_type("status", camera_id=cam, state="live")) > before,
+            15,
+            "the camera to open with its password",
+        )
+
+    try:
+        with WsClient(server.ws) as ws:
+            cam = httpx.post(f"{base}/api/cameras", json={"name": "gate", "source": real}).json()
+            cam = cam["id"]
+            live_again(ws, cam, 0)  # The worker has the real password (401 without).
+            listed = httpx.get(f"{base}/api/cameras")
+            assert password not in listed.text
+            assert [c["source"] for c in listed.json()] == [shown]
+            one = httpx.get(f"{base}/api/cameras/{cam}")
+            assert one.json()["source"] == shown and password not in one.text
+            for path in ("/", "/static/app.js"):
+                assert password not in httpx.get(f"{base}{path}").text
+
+            # The source sent back as shown, with another setting: the password stays.
+            kept = httpx.patch(
+                f"{base}/api/cameras/{cam}", json={"source": shown, "sensitivity": 40}
+            )
+            assert kept.status_code == 200 and password not in kept.text
+            assert (kept.json()["source"], kept.json()["sensitivity"]) == (shown, 40)
+            assert stored(cam) == real
+            # Another path on the same host and user: the stored password goes with it.
+            lives = len(ws.of_type("status", camera_id=cam, state="live"))
+            moved = httpx.patch(f"{base}/api/cameras/{cam}", json={"source": f"{shown}?s=1"})
+            assert moved.json()["source"] == f"{shown}?s=1"
+            assert stored(cam) == f"{real}?s=1"
+            live_again(ws, cam, lives)  # Started again on the new source, password and all.
+            for path in ("/activate", "/stop"):
+                answer = httpx.post(f"{base}/api/cameras/{cam}{path}")
+                assert answer.status_code == 200 and password not in answer.text
+
+            # The mask sent to another host (or user) is refused: the password stays home.
+            for elsewhere in (
+                f"http://admin:***@127.0.0.2:{camera.port}/video.mjpg",
+                f"http://root:***@{host}/video.mjpg",
+            ):
+                refused = httpx.patch(f"{base}/api/cameras/{cam}", json={"source": elsewhere})
+                assert refused.status_code == 422, refused.text
+                assert "type the password" in refused.text and password not in refused.text
+            assert stored(cam) == f"{real}?s=1"
+            copied = httpx.post(f"{base}/api/cameras", json={"name": "copy", "source": shown})
+            assert copied.status_code == 422 and "type the password" in copied.text
+
+            # A new source replaces it, here with a wrong password: the camera is refused.
+            wrong = f"http://admin:wrong-pw@{host}/video.mjpg"
+            replaced = httpx.patch(f"{base}/api/cameras/{cam}", json={"source": wrong})
+            assert replaced.json()["source"] == shown and stored(cam) == wrong
+            ws.wait("status", 15, camera_id=cam, state="error")
+            messages = json.dumps(ws.messages)
+            assert ws.of_type("status", camera_id=cam) and password not in messages
+            assert (
+                "wrong-pw" not in messages
+                and "wrong-pw" not in httpx.get(f"{base}/api/cameras").text
+            )
+    finally:
+        camera.stop()

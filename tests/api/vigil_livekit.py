@@ -6,6 +6,7 @@ Imported by the conftests of tests/api, tests/workers and tests/sources.
 from __future__ import annotations
 
 import asyncio
+import base64
 import json
 import os
 import socket
@@ -263,11 +264,14 @@ class MjpegCamera:
 
     ``mode`` makes it misbehave as real cameras do: ``"silent"`` accepts connections
     and never answers, ``"stall"`` stops in the middle of a frame, ``"garbage"`` sends
-    parts that are not JPEGs; ``"normal"`` again and it behaves.
+    parts that are not JPEGs; ``"normal"`` again and it behaves. With ``auth`` (user,
+    password) it answers 401 to a request without that HTTP basic authorisation.
     """
 
-    def __init__(self, fps: float = FPS) -> None:
+    def __init__(self, fps: float = FPS, auth: tuple[str, str] | None = None) -> None:
         self.fps = fps
+        self.auth = auth
+        self.refused = 0
         self.port = 0
         self._server: ThreadingHTTPServer | None = None
         self._thread: threading.Thread | None = None
@@ -292,6 +296,15 @@ class MjpegCamera:
                 pass
 
             def do_GET(self) -> None:
+                if camera.auth is not None:
+                    token = base64.b64encode(":".join(camera.auth).encode()).decode()
+                    if self.headers.get("Authorization") != f"Basic {token}":
+                        camera.refused += 1
+                        self.send_response(401)
+                        self.send_header("WWW-Authenticate", 'Basic realm="camera"')
+                        self.send_header("Content-Length", "0")
+                        self.end_headers()
+                        return
                 while misbehaving("silent"):
                     time.sleep(0.05)
                 self.send_response(200)

@@ -14,6 +14,7 @@ from app.sources.live import (
     SourceError,
     open_source,
     parse_source,
+    with_stored_password,
     without_password,
 )
 from tests.api.vigil_livekit import FPS, MjpegCamera, write_video
@@ -45,6 +46,12 @@ def test_parse_source_rejects(text: str) -> None:
         parse_source(text)
 
 
+def test_parse_source_reasons_leave_out_passwords() -> None:
+    with pytest.raises(ValueError, match="no host") as refused:
+        parse_source("http://admin:s3cret@/video.mjpg")
+    assert "s3cret" not in str(refused.value)
+
+
 @pytest.mark.parametrize(
     ("source", "logged"),
     [
@@ -53,10 +60,73 @@ def test_parse_source_rejects(text: str) -> None:
         ("http://viewer@cam/video.mjpg", "http://viewer@cam/video.mjpg"),
         ("rtsp://cam/live", "rtsp://cam/live"),
         ("/videos/yard.avi", "/videos/yard.avi"),
+        # The API shows sources so too: whatever has no password comes back exactly.
+        ("demo", "demo"),
+        ("0", "0"),
+        ("/dev/video0", "/dev/video0"),
+        ("file:///x.avi", "file:///x.avi"),
+        ("rtsp://127.0.0.1:8554/x", "rtsp://127.0.0.1:8554/x"),
+        ("http://h/x?", "http://h/x?"),
+        ("rtsp://cam/stream@2", "rtsp://cam/stream@2"),  # An @ in the path: no user.
+        ("rtsp://[fe80::1]:554/live", "rtsp://[fe80::1]:554/live"),
+        ("https://viewer:@cam/a", "https://viewer:***@cam/a"),  # Empty, still a password.
+        ("https://:pw@cam/a", "https://:***@cam/a"),
+        ("RTSP://Admin:pw@Cam/A", "RTSP://Admin:***@Cam/A"),
+        ("rtsp://admin:p@ss@cam/a@b", "rtsp://admin:***@cam/a@b"),  # The last @ ends it.
+        ("rtsp://admin:pw@[fe80::1%25eth0]:554/live", "rtsp://admin:***@[fe80::1%25eth0]:554/live"),
+        ("rtsp://admin:pw@[::1]/x#frag", "rtsp://admin:***@[::1]/x#frag"),
+        ("http://cam/v.cgi?user=admin&pwd=pw&x=1", "http://cam/v.cgi?user=admin&pwd=***&x=1"),
+        ("http://cam/v?Password=pw#top", "http://cam/v?Password=***#top"),
+        ("http://cam/v?passes=1&pass=pw", "http://cam/v?passes=1&pass=***"),
+        ("http://cam/pwd=x/v", "http://cam/pwd=x/v"),  # In the path, not a parameter.
     ],
 )
 def test_passwords_stay_out_of_logs(source: str, logged: str) -> None:
     assert without_password(source) == logged
+
+
+STORED = "rtsp://admin:s3cret@10.0.0.5:554/stream"
+
+
+@pytest.mark.parametrize(
+    ("sent", "stored", "kept"),
+    [
+        ("rtsp://admin:***@10.0.0.5:554/stream", STORED, STORED),  # As the API shows it.
+        (STORED, STORED, STORED),
+        ("rtsp://admin:new@10.0.0.5:554/stream", STORED, "rtsp://admin:new@10.0.0.5:554/stream"),
+        ("rtsp://10.0.0.6/stream", STORED, "rtsp://10.0.0.6/stream"),
+        ("demo", STORED, "demo"),
+        ("rtsp://admin:***@10.0.0.5:554/sub", STORED, "rtsp://admin:s3cret@10.0.0.5:554/sub"),
+        ("RTSP://admin:***@10.0.0.5:554/x", STORED, "RTSP://admin:s3cret@10.0.0.5:554/x"),
+        ("rtsp://admin:***@[::1]/b", "rtsp://admin:pw@[::1]/a", "rtsp://admin:pw@[::1]/b"),
+        (
+            "http://cam/v.cgi?user=admin&pwd=***&res=2",
+            "http://cam/v.cgi?user=admin&pwd=pw",
+            "http://cam/v.cgi?user=admin&pwd=pw&res=2",
+        ),
+        ("rtsp://admin:***@cam/x", "rtsp://admin:***@cam/x", "rtsp://admin:***@cam/x"),
+    ],
+)
+def test_a_source_sent_back_masked_keeps_its_password(sent: str, stored: str, kept: str) -> None:
+    assert with_stored_password(sent, stored) == kept
+
+
+@pytest.mark.parametrize(
+    "sent",
+    [
+        "rtsp://admin:***@10.0.0.6:554/stream",  # Another host,
+        "rtsp://admin:***@10.0.0.5:8554/stream",  # port,
+        "rtsp://root:***@10.0.0.5:554/stream",  # user,
+        "rtsps://admin:***@10.0.0.5:554/stream",  # scheme.
+        "rtsp://admin:s3cret@10.0.0.5:554/stream?pwd=***",  # No such password stored.
+    ],
+)
+def test_the_mask_never_sends_the_password_elsewhere(sent: str) -> None:
+    with pytest.raises(ValueError, match="type the password") as refused:
+        with_stored_password(sent, STORED)
+    assert "s3cret" not in str(refused.value)
+    with pytest.raises(ValueError, match="type the password"):
+        with_stored_password(sent, "demo")
 
 
 def test_demo_loops_with_motion() -> None:

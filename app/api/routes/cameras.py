@@ -1,4 +1,9 @@
-"""Cameras: list, add, change, remove, Activate and Stop."""
+"""Cameras: list, add, change, remove, Activate and Stop.
+
+A camera's source is shown ``without_password`` (``rtsp://admin:***@host/...``) wherever
+the API shows a camera; the worker gets the stored one. ``PATCH`` takes back the source
+as shown (``with_stored_password``), so a client can send a camera back as it read it.
+"""
 
 from __future__ import annotations
 
@@ -9,7 +14,7 @@ from pydantic import BaseModel, ConfigDict, Field, field_validator
 
 from app.api.routes.inputs import StrictJsonRoute, is_control
 from app.api.services import services
-from app.sources.live import parse_source
+from app.sources.live import MASK, has_masked_password, parse_source, with_stored_password
 from app.vision.motion import DEFAULT_METHOD, METHODS
 from app.vision.zones import as_polygons
 
@@ -43,6 +48,16 @@ def _check_source(value: str | None) -> str | None:
     return value
 
 
+def _check_new_source(value: str) -> str:
+    """A new camera's source: one whose password is the mask was copied from the API."""
+    if has_masked_password(value):
+        raise ValueError(
+            f"{MASK} is how Vigil shows a stored password, not a password: type the password"
+            f" (one that really is {MASK} is written %2A%2A%2A)"
+        )
+    return value
+
+
 class CameraIn(BaseModel):
     model_config = ConfigDict(extra="forbid")  # A misspelt setting is an error, not ignored.
 
@@ -55,6 +70,7 @@ class CameraIn(BaseModel):
     _name = field_validator("name")(_check_text)
     _method = field_validator("method")(_check_method)
     _source = field_validator("source")(_check_source)
+    _new_source = field_validator("source")(_check_new_source)
 
 
 class CameraPatch(BaseModel):
@@ -124,6 +140,11 @@ def change_camera(request: Request, camera_id: int, body: CameraPatch) -> dict[s
     for key in ("name", "source", "min_area", "method", "show_mask"):
         if key in changes and changes[key] is None:
             raise HTTPException(422, f"{key} cannot be null")
+    if "source" in changes:
+        try:  # The source as GET shows it, password masked, keeps the password.
+            changes["source"] = with_stored_password(changes["source"], before["source"])
+        except ValueError as exc:
+            raise HTTPException(422, str(exc)) from None
     camera = svc.database.update_camera(camera_id, **changes)
     if camera is None:
         raise HTTPException(404, f"no camera {camera_id}")

@@ -32,10 +32,38 @@ lint: $(VENV)/.installed-dev
 
 # pip-audit asks a vulnerability service about every installed package. On a network that
 # reaches only a package mirror (this project's CI), PyPI's JSON API answers 404 for each one,
-# yet pip-audit says "No known vulnerabilities found", and OSV cannot be reached. So a service
-# counts only once it has audited a package; when none has, the audit says so and is skipped.
-AUDITED := import json, sys; deps = json.load(sys.stdin)["dependencies"]; \
-	sys.exit(not any("skip_reason" not in d for d in deps))
+# yet pip-audit says "No known vulnerabilities found", and OSV cannot be reached. So each
+# service runs once, its JSON read by AUDIT_REPORT: it counts only once it has audited a
+# package (exit 2: try the next; with none, the audit says so and is skipped). Then a known
+# vulnerability fails the audit, and so does a package it could not audit, as --strict
+# would (which cannot be used: it refuses the editable Vigil that --skip-editable skips).
+define AUDIT_REPORT
+import json, sys
+service = sys.argv[1]
+try:
+    deps = json.load(sys.stdin)["dependencies"]
+except (ValueError, KeyError, TypeError):
+    sys.exit(2)
+audited = [d for d in deps if "skip_reason" not in d]
+if not audited:
+    sys.exit(2)
+unaudited = [
+    d for d in deps if d.get("skip_reason", "distribution marked as editable")
+    != "distribution marked as editable"
+]
+vulns = [(d, v) for d in audited for v in d["vulns"]]
+for d, v in vulns:
+    fix = ", ".join(v["fix_versions"]) or "none yet"
+    print(f"{d['name']} {d['version']}: {v['id']} (fixed in: {fix})")
+for d in unaudited:
+    print(f"{d['name']}: not audited: {d['skip_reason']}")
+print(
+    f"pip-audit -s {service}: {len(audited)} packages audited, {len(vulns)} known "
+    f"vulnerabilities, {len(unaudited)} packages not audited"
+)
+sys.exit(1 if vulns or unaudited else 0)
+endef
+export AUDIT_REPORT
 
 audit: audit-code audit-deps
 
@@ -44,11 +72,10 @@ audit-code: $(VENV)/.installed-dev
 
 audit-deps: $(VENV)/.installed-dev
 	@for service in pypi osv; do \
-		if $(BIN)/pip-audit -s $$service --skip-editable --progress-spinner off -f json \
-				2>/dev/null | $(BIN)/python -c '$(AUDITED)' 2>/dev/null; then \
-			echo "pip-audit -s $$service --strict --skip-editable"; \
-			exec $(BIN)/pip-audit -s $$service --strict --skip-editable --progress-spinner off; \
-		fi; \
+		$(BIN)/pip-audit -s $$service --skip-editable --progress-spinner off -f json \
+			2>/dev/null | $(BIN)/python -c "$$AUDIT_REPORT" $$service; \
+		status=$$?; \
+		if [ $$status -ne 2 ]; then exit $$status; fi; \
 	done; \
 	echo "pip-audit: vulnerability service unreachable (neither PyPI's JSON API nor OSV" \
 		"audited a package), skipped"

@@ -25,6 +25,9 @@ MIN_FRAMES = 2
 SINGLE_PICTURE = (
     "{path} holds only one decodable frame (a picture, not a video?): motion needs at least two"
 )
+CDNET_MARKERS = ("groundtruth", "temporalROI.txt")
+"""Beside these a folder is a CDnet sequence, read from its ``input/`` (its ROI pictures
+are not frames); a folder with fewer than two images and an ``input/`` is read from there."""
 FFMPEG_LOG_QUIET = "-8"
 """``OPENCV_FFMPEG_LOGLEVEL`` for none of FFmpeg's own messages (AV_LOG_QUIET)."""
 _NUMBER = re.compile(r"(\d+)\D*$")
@@ -158,15 +161,22 @@ def open_input(path: Path, fps: float | None = None, max_pixels: int | None = No
     )
 
 
-def _open_folder(folder: Path, fps: float | None, max_pixels: int | None) -> VideoInput:
-    if (folder / "input").is_dir() and any(
-        (folder / name).exists() for name in ("groundtruth", "temporalROI.txt")
-    ):
-        folder = folder / "input"  # A CDnet sequence: its frames, not its ROI picture.
+def _images(folder: Path) -> list[Path]:
+    """The folder's image files, sorted by name."""
     try:
-        images = sorted(p for p in folder.iterdir() if p.suffix.lower() in IMAGE_SUFFIXES)
+        return sorted(p for p in folder.iterdir() if p.suffix.lower() in IMAGE_SUFFIXES)
     except PermissionError:
         raise InputError(f"folder is not readable: {folder}") from None
+
+
+def _open_folder(folder: Path, fps: float | None, max_pixels: int | None) -> VideoInput:
+    images = _images(folder)
+    sequence = folder / "input"
+    if sequence.is_dir() and (
+        len(images) < MIN_FRAMES or any((folder / name).exists() for name in CDNET_MARKERS)
+    ):
+        # A data set's sequence (CDnet, Wallflower): its frames, not its ROI or label picture.
+        folder, images = sequence, _images(sequence)
     if not images:
         raise InputError(f"no image frames in folder: {folder}")
     if len(images) < MIN_FRAMES:

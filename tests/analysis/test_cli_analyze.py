@@ -202,6 +202,20 @@ def test_cdnet_sequence_folder_is_analysed_from_its_input_frames(tmp_path):
     assert report["evaluation"]["pixels"]["f_measure"] > 0.8
 
 
+def test_a_sequence_folder_with_one_label_picture_is_analysed_from_its_input(tmp_path):
+    """Wallflower's layout: frames in input/, one hand-labelled frame beside it."""
+    folder = tmp_path / "waving-trees"
+    (folder / "input").mkdir(parents=True)
+    for i in range(WALKER.frames):
+        cv2.imwrite(str(folder / "input" / f"b{i:05d}.png"), WALKER.frame(i))
+    cv2.imwrite(str(folder / "hand_segmented_00010.png"), np.zeros((240, 320), np.uint8))
+    result = vigil("analyze", folder, "--out", tmp_path / "out", "--quiet")
+    assert result.returncode == 0, result.stderr
+    report = json.loads((tmp_path / "out" / "report.json").read_text())
+    assert report["frames"] == WALKER.frames
+    assert {row["track_id"] for row in read_tracks(tmp_path / "out")} == {"1"}
+
+
 def test_truth_at_another_scale_is_scored_and_of_another_shape_refused(tmp_path, walker_video):
     doubled = _cdnet_sequence(tmp_path / "doubled", (640, 480))
     result = vigil("analyze", walker_video, "--out", tmp_path / "a", "--truth", doubled, "--quiet")

@@ -481,6 +481,24 @@ def proc_cpu_seconds(pid: int) -> float:
     return (int(fields[11]) + int(fields[12])) / os.sysconf("SC_CLK_TCK")
 
 
+def proc_read_bytes(pid: int) -> int:
+    """Bytes a process has read (``rchar`` of /proc/PID/io: every read call, files too)."""
+    for line in Path(f"/proc/{pid}/io").read_text().splitlines():
+        if line.startswith("rchar:"):
+            return int(line.split()[1])
+    raise RuntimeError(f"no rchar in /proc/{pid}/io")
+
+
+def bytes_per_frame(clips: Sequence[Path]) -> float:
+    """The clips' mean file bytes per frame (an MJPG AVI is almost all JPEGs)."""
+    frames = 0
+    for clip in clips:
+        capture = cv2.VideoCapture(str(clip), cv2.CAP_FFMPEG)
+        frames += int(capture.get(cv2.CAP_PROP_FRAME_COUNT))
+        capture.release()
+    return sum(clip.stat().st_size for clip in clips) / max(frames, 1)
+
+
 def motion_version() -> str:
     run = subprocess.run([str(MOTION), "-h"], capture_output=True, text=True, timeout=10)
     found = re.search(r"Version\s+([\d.]+)", run.stdout + run.stderr)
@@ -529,7 +547,17 @@ def motion_config(clips: Sequence[Path], folder: Path) -> Path:
 class MotionRun:
     ms_per_frame: list[float]
     """Per window: CPU ms / (window seconds x FPS x cameras)."""
+    read_fps: list[float]
+    """Per window and camera: the clip bytes it read / bytes per frame / window seconds. A
+    check that Motion took every frame, which its ms per frame assumes."""
     log_problems: list[str]
+
+    @property
+    def problems(self) -> list[str]:
+        """Its log's errors and warnings, and a reading rate below the sustained one."""
+        slow = median(self.read_fps)
+        late = [f"Motion read {slow:.1f} fps per camera: its ms per frame is too low"]
+        return self.log_problems + (late if slow < SUSTAINED_FPS else [])
 
 
 def measure_motion(clips: Sequence[Path], folder: Path, windows: Windows) -> MotionRun:
@@ -544,12 +572,14 @@ def measure_motion(clips: Sequence[Path], folder: Path, windows: Windows) -> Mot
         stderr=subprocess.DEVNULL,
     )
     marks = []
+    read = []
     try:
         for bound in windows.bounds(time.monotonic()):
             sleep_until(bound)
             if proc.poll() is not None:
                 raise SystemExit(f"motion exited early ({proc.returncode}); see {config}")
             marks.append(proc_cpu_seconds(proc.pid))
+            read.append(proc_read_bytes(proc.pid))
     finally:
         proc.terminate()
         try:
@@ -559,10 +589,12 @@ def measure_motion(clips: Sequence[Path], folder: Path, windows: Windows) -> Mot
             proc.wait()
     frames = windows.length * FPS * len(clips)
     per_frame = [1000 * (b - a) / frames for a, b in itertools.pairwise(marks)]
+    frame_bytes = bytes_per_frame(clips) * windows.length * len(clips)
+    read_fps = [(b - a) / frame_bytes for a, b in itertools.pairwise(read)]
     log = folder / "motion.log"
     text = log.read_text(errors="replace") if log.exists() else ""
     problems = [line for line in text.splitlines() if re.search(r"\[(ERR|WRN|ALR|CRT|EMG)\]", line)]
-    return MotionRun(per_frame, problems)
+    return MotionRun(per_frame, read_fps, problems)
 
 
 @dataclass(frozen=True)
@@ -656,7 +688,7 @@ def measure_at_load(
         rows.append(
             [
                 f"Motion {motion_version()}, {AT_LOAD_CAMERAS} cameras",
-                f"{FPS:g}",
+                f"{FPS:g} (read {fmt(median(motion.read_fps), 1)})",
                 fmt(median(motion.ms_per_frame), 2),
             ]
         )
@@ -676,8 +708,8 @@ def measure_at_load(
 
 
 def print_motion_problems(motion: MotionRun) -> None:
-    if motion.log_problems:
-        print("Motion log errors/warnings:", *motion.log_problems[:5], sep="\n    ")
+    if motion.problems:
+        print("Motion's problems:", *motion.problems[-5:], sep="\n    ")
 
 
 def print_paced(args: argparse.Namespace, paced: list[PacedRow], motion: MotionRun | None) -> None:
@@ -699,7 +731,7 @@ def print_paced(args: argparse.Namespace, paced: list[PacedRow], motion: MotionR
             [
                 f"Motion {motion_version()} (detection on)",
                 "-",
-                f"{FPS:g}",
+                fmt(median(motion.read_fps), 1),
                 f"{FPS:g}",
                 "-",
                 fmt(motion_ms, 2),
@@ -722,7 +754,8 @@ def print_paced(args: argparse.Namespace, paced: list[PacedRow], motion: MotionR
         rows,
         note=(
             "    ms CPU/frame: worker process CPU (all threads) / frames read; Motion's frames"
-            f" = window x {FPS:g}\n    x Motion: the row's ms/frame divided by Motion's"
+            f" = window x {FPS:g}\n    (its read fps: clip bytes it read / bytes per frame, a"
+            " check)\n    x Motion: the row's ms/frame divided by Motion's"
             " (above 1 = costs more)"
         ),
     )

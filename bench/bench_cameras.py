@@ -547,17 +547,17 @@ def motion_config(clips: Sequence[Path], folder: Path) -> Path:
 class MotionRun:
     ms_per_frame: list[float]
     """Per window: CPU ms / (window seconds x FPS x cameras)."""
-    read_fps: list[float]
-    """Per window and camera: the clip bytes it read / bytes per frame / window seconds. A
-    check that Motion took every frame, which its ms per frame assumes."""
+    read_fps: float
+    """Per camera over all the windows (its reads come in blocks of several frames): the
+    clip bytes it read / bytes per frame / seconds. A check that Motion took every frame,
+    which its ms per frame assumes."""
     log_problems: list[str]
 
     @property
     def problems(self) -> list[str]:
         """Its log's errors and warnings, and a reading rate below the sustained one."""
-        slow = median(self.read_fps)
-        late = [f"Motion read {slow:.1f} fps per camera: its ms per frame is too low"]
-        return self.log_problems + (late if slow < SUSTAINED_FPS else [])
+        late = f"Motion read {self.read_fps:.1f} fps per camera: its ms per frame is too low"
+        return self.log_problems + ([late] if self.read_fps < SUSTAINED_FPS else [])
 
 
 def measure_motion(clips: Sequence[Path], folder: Path, windows: Windows) -> MotionRun:
@@ -589,8 +589,8 @@ def measure_motion(clips: Sequence[Path], folder: Path, windows: Windows) -> Mot
             proc.wait()
     frames = windows.length * FPS * len(clips)
     per_frame = [1000 * (b - a) / frames for a, b in itertools.pairwise(marks)]
-    frame_bytes = bytes_per_frame(clips) * windows.length * len(clips)
-    read_fps = [(b - a) / frame_bytes for a, b in itertools.pairwise(read)]
+    seconds = windows.length * windows.count * len(clips)
+    read_fps = (read[-1] - read[0]) / bytes_per_frame(clips) / seconds
     log = folder / "motion.log"
     text = log.read_text(errors="replace") if log.exists() else ""
     problems = [line for line in text.splitlines() if re.search(r"\[(ERR|WRN|ALR|CRT|EMG)\]", line)]
@@ -688,7 +688,7 @@ def measure_at_load(
         rows.append(
             [
                 f"Motion {motion_version()}, {AT_LOAD_CAMERAS} cameras",
-                f"{FPS:g} (read {fmt(median(motion.read_fps), 1)})",
+                f"{FPS:g} (read {fmt(motion.read_fps, 1)})",
                 fmt(median(motion.ms_per_frame), 2),
             ]
         )
@@ -731,7 +731,7 @@ def print_paced(args: argparse.Namespace, paced: list[PacedRow], motion: MotionR
             [
                 f"Motion {motion_version()} (detection on)",
                 "-",
-                fmt(median(motion.read_fps), 1),
+                fmt(motion.read_fps, 1),
                 f"{FPS:g}",
                 "-",
                 fmt(motion_ms, 2),

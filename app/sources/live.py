@@ -50,12 +50,10 @@ def parse_source(text: str) -> SourceSpec:
         return SourceSpec("demo", "demo", raw)
     if re.fullmatch(r"\d{1,3}", raw):
         return SourceSpec("device", raw, raw)
-    if lowered.startswith(("rtsp://", "rtsps://")):
-        return SourceSpec("rtsp", raw, raw)
-    if lowered.startswith(("http://", "https://")):
+    if lowered.startswith(("rtsp://", "rtsps://", "http://", "https://")):
         if not urlparse(raw).hostname:
             raise ValueError(f"URL has no host: {without_password(raw)}")
-        return SourceSpec("http", raw, raw)
+        return SourceSpec("rtsp" if lowered.startswith("rtsp") else "http", raw, raw)
     if lowered.startswith("file://"):
         parsed = urlparse(raw)
         path = unquote(parsed.path)
@@ -74,8 +72,11 @@ def parse_source(text: str) -> SourceSpec:
 MASK = "***"
 """What logs and the API show in place of a source's password (``without_password``)."""
 
-SECRET_PARAMS = ("password", "passwd", "pass", "pwd")
-"""Query parameters that carry a camera's password (``/video.cgi?user=admin&pwd=...``)."""
+SECRET_PARAMS = ("password", "passwd", "pass", "pwd", "pswd", "psw", "pw", "loginpas")
+"""Parameters that carry a camera's password, in its query (``/video.cgi?user=admin&pwd=``)
+or its path (``rtsp://dvr/user=admin&password=...&channel=1.sdp``)."""
+USER_PARAMS = ("user", "usr", "username", "loginuse")
+"""Parameters that name the user a password parameter belongs to."""
 
 _URL = re.compile(
     r"(?P<scheme>[A-Za-z][A-Za-z0-9+.-]*://)(?P<authority>[^/?#]*)(?P<path>[^?#]*)"
@@ -84,9 +85,9 @@ _URL = re.compile(
 )
 """A URL cut where ``urllib.parse.urlsplit`` cuts it (and FFmpeg: the authority ends at the
 first ``/``, ``?`` or ``#``), so that putting the parts together gives the text back."""
-_SECRET_PARAM = re.compile(
-    rf"(?P<head>[?&](?P<name>{'|'.join(SECRET_PARAMS)})=)(?P<value>[^&]*)", re.IGNORECASE
-)
+_PARAM = r"(?P<head>[/?&;](?P<name>{})=)(?P<value>[^/?&;#]*)"
+_SECRET_PARAM = re.compile(_PARAM.format("|".join(SECRET_PARAMS)), re.IGNORECASE)
+_USER_PARAM = re.compile(_PARAM.format("|".join(USER_PARAMS)), re.IGNORECASE)
 
 
 def _edit_passwords(text: str, edit: Callable[[str, str], str]) -> str:
@@ -94,9 +95,9 @@ def _edit_passwords(text: str, edit: Callable[[str, str], str]) -> str:
 
     A password is the one of the URL's user information (``scheme://user:password@host``,
     ``place`` ``"userinfo"``; split at the last ``@`` and the first ``:``) or the value of
-    a query parameter named in ``SECRET_PARAMS`` (``place`` ``"?"`` and its name in lower
-    case). Everything else, and any text that is not a URL, stays as it is, character for
-    character.
+    a parameter named in ``SECRET_PARAMS``, in the path or the query (``place`` ``"?"``
+    and its name in lower case). Everything else, and any text that is not a URL, stays
+    as it is, character for character.
     """
     url = _URL.fullmatch(text)
     if url is None:
@@ -106,12 +107,11 @@ def _edit_passwords(text: str, edit: Callable[[str, str], str]) -> str:
     if at and ":" in userinfo:
         user, _, password = userinfo.partition(":")
         authority = f"{user}:{edit('userinfo', password)}@{host}"
-    query = url["query"] or ""
-    if query:
-        query = _SECRET_PARAM.sub(
-            lambda m: m["head"] + edit("?" + m["name"].lower(), m["value"]), query
-        )
-    return url["scheme"] + authority + url["path"] + query + (url["fragment"] or "")
+    rest = _SECRET_PARAM.sub(
+        lambda m: m["head"] + edit("?" + m["name"].lower(), m["value"]),
+        url["path"] + (url["query"] or ""),
+    )
+    return url["scheme"] + authority + rest + (url["fragment"] or "")
 
 
 def _passwords(text: str) -> list[tuple[str, str]]:
@@ -126,20 +126,26 @@ def _passwords(text: str) -> list[tuple[str, str]]:
     return found
 
 
-def _endpoint(text: str) -> tuple[str, str, str] | None:
-    """Whom a URL's password goes to: its scheme, user and host with port (None: no URL)."""
+def _endpoint(text: str) -> tuple[str, str, str, list[tuple[str, str]]] | None:
+    """Whom a URL's password goes to: its scheme, user, host with port, and the users its
+    parameters name (None: not a URL)."""
     url = _URL.fullmatch(text)
     if url is None:
         return None
     userinfo, _, host = url["authority"].rpartition("@")
-    return url["scheme"].lower(), userinfo.partition(":")[0], host.lower()
+    users = [
+        (m["name"].lower(), m["value"])
+        for m in _USER_PARAM.finditer(url["path"] + (url["query"] or ""))
+    ]
+    return url["scheme"].lower(), userinfo.partition(":")[0], host.lower(), users
 
 
 def without_password(text: str) -> str:
     """``text`` with its passwords replaced by ``MASK``: a source as logs and the API show it.
 
     ``rtsp://admin:secret@10.0.0.5/stream`` gives ``rtsp://admin:***@10.0.0.5/stream`` (the
-    user is kept), ``http://cam/video.cgi?user=admin&pwd=secret`` gives ``...&pwd=***``;
+    user is kept), ``http://cam/video.cgi?user=admin&pwd=secret`` gives ``...&pwd=***``,
+    ``rtsp://dvr/user=admin&password=secret&channel=1.sdp`` ``...&password=***&...``;
     a source without a password (``demo``, ``0``, ``/dev/video0``, ``file:///x.avi``,
     ``rtsp://admin@cam/live``) comes back unchanged.
     """
@@ -161,7 +167,8 @@ def with_stored_password(source: str, stored: str) -> str:
     - No password in ``source`` reads ``MASK``: a new source, taken as it is.
     - A password reads ``MASK`` and the rest changed (another stream path, say): the
       stored password is put back in its place, if ``source`` goes to the same scheme,
-      user, host and port as ``stored`` and ``stored`` has a password in that place. A
+      user (of ``user:password@`` and of ``USER_PARAMS``), host and port as ``stored``
+      and ``stored`` has a password in that place. A
       password is never sent to another server than the one it was given for, so moving
       a camera to another address means typing its password.
     - Otherwise ``ValueError`` saying why (without the password).
@@ -345,7 +352,7 @@ class CaptureSource:
             read_timeout_ms,
         ]
         capture = cv2.VideoCapture(url, cv2.CAP_FFMPEG, params)
-        host = urlparse(url).hostname or url
+        host = urlparse(url).hostname or without_password(url)
         if not capture.isOpened():
             capture.release()
             raise SourceError(f"cannot open stream from {host}")

@@ -46,9 +46,13 @@ def test_parse_source_rejects(text: str) -> None:
         parse_source(text)
 
 
-def test_parse_source_reasons_leave_out_passwords() -> None:
+@pytest.mark.parametrize(
+    "source",
+    ["http://admin:s3cret@/video.mjpg", "rtsp://admin:s3cret@/live", "rtsp://admin:s3cret@:554/x"],
+)
+def test_parse_source_reasons_leave_out_passwords(source: str) -> None:
     with pytest.raises(ValueError, match="no host") as refused:
-        parse_source("http://admin:s3cret@/video.mjpg")
+        parse_source(source)
     assert "s3cret" not in str(refused.value)
 
 
@@ -78,10 +82,17 @@ def test_parse_source_reasons_leave_out_passwords() -> None:
         ("http://cam/v.cgi?user=admin&pwd=pw&x=1", "http://cam/v.cgi?user=admin&pwd=***&x=1"),
         ("http://cam/v?Password=pw#top", "http://cam/v?Password=***#top"),
         ("http://cam/v?passes=1&pass=pw", "http://cam/v?passes=1&pass=***"),
-        ("http://cam/pwd=x/v", "http://cam/pwd=x/v"),  # In the path, not a parameter.
+        ("http://cam/pwd=x/v", "http://cam/pwd=***/v"),  # Path parameters too:
+        (
+            "rtsp://dvr:554/user=admin&password=pw&channel=1&stream=0.sdp",  # XMEye DVRs,
+            "rtsp://dvr:554/user=admin&password=***&channel=1&stream=0.sdp",
+        ),
+        ("http://cam/v.cgi?loginuse=a&loginpas=pw", "http://cam/v.cgi?loginuse=a&loginpas=***"),
+        ("http://cam/v?user=a;pwd=pw;res=1", "http://cam/v?user=a;pwd=***;res=1"),
+        ("http://cam/compwd=x", "http://cam/compwd=x"),  # Not a parameter's whole name.
     ],
 )
-def test_passwords_stay_out_of_logs(source: str, logged: str) -> None:
+def test_sources_are_shown_without_passwords(source: str, logged: str) -> None:
     assert without_password(source) == logged
 
 
@@ -127,6 +138,14 @@ def test_the_mask_never_sends_the_password_elsewhere(sent: str) -> None:
     assert "s3cret" not in str(refused.value)
     with pytest.raises(ValueError, match="type the password"):
         with_stored_password(sent, "demo")
+
+
+def test_the_mask_keeps_a_parameter_password_to_its_user() -> None:
+    stored = "http://cam/v.cgi?user=admin&pwd=s3cret"
+    kept = with_stored_password("http://cam/v.cgi?user=admin&pwd=***&res=2", stored)
+    assert kept == "http://cam/v.cgi?user=admin&pwd=s3cret&res=2"
+    with pytest.raises(ValueError, match="type the password"):
+        with_stored_password("http://cam/v.cgi?user=root&pwd=***", stored)
 
 
 def test_demo_loops_with_motion() -> None:

@@ -226,6 +226,8 @@ class CameraWorker:
                 delay = due - time.monotonic()
                 if 0 < delay <= PLAIN_SLEEP_S:
                     time.sleep(delay)
+                    if self._stop.is_set():
+                        return
                 elif delay > 0 and self._stop.wait(delay):
                     return
                 due = max(due + period, time.monotonic() - 1.0)  # Catch up at most a second.

@@ -154,3 +154,22 @@ def test_each_new_object_in_an_open_event_gives_its_own_alarm(
     assert alarms[0]["event_id"] == alarms[1]["event_id"]
     assert len(alarms[1]["boxes"]) == 2
     assert alarms[0]["snapshot"] != alarms[1]["snapshot"]
+
+
+def test_a_stop_between_frames_handles_no_further_frame(
+    parts: dict[str, Any], tmp_path: Path
+) -> None:
+    """Stopped while it waits for its next frame (most of a frame period), a camera
+    handles none after: no frame, and so no alarm or snapshot, once it was told to stop."""
+    worker = make_worker(parts, str(write_video(tmp_path / "v.avi")), active=True)
+    worker.start()
+    try:
+        wait_for(lambda: worker.processed > 3, 10, "detection running")
+        seen = worker.frames
+        wait_for(lambda: worker.frames > seen, 5, "the next frame")
+        worker.request_stop()  # Just after a frame: the worker is about to wait.
+        stopped_at = worker.frames
+    finally:
+        worker.request_stop()
+        assert worker.join(5)
+    assert worker.frames == stopped_at

@@ -21,7 +21,7 @@ from __future__ import annotations
 import math
 from collections import deque
 from dataclasses import dataclass, field, replace
-from typing import Any
+from typing import TypeVar
 
 import numpy as np
 from scipy.optimize import linear_sum_assignment
@@ -30,6 +30,7 @@ from app.vision.detections import Box, Detection
 from app.vision.kinematics import fit_velocity, speed
 
 Point = tuple[float, float]
+Distance = TypeVar("Distance", float, np.ndarray)
 
 DISALLOWED = 1e9
 """The cost of a pair outside the gate, for the assignment solver."""
@@ -164,7 +165,7 @@ class Tracker:
         matches = [(r, tracks[c]) for r, c in zip(rows, cols, strict=True)]
         return matches, [i for i in range(len(detections)) if i not in matched_rows]
 
-    def _gate(self, size: Any, missed: Any) -> Any:
+    def _gate(self, size: Distance, missed: Distance) -> Distance:
         """How far a detection may be from a track's prediction (floats or arrays): the
         gate widens with the object's size and with each frame it went unseen."""
         return self.config.gate_px + size * (0.5 + 0.25 * missed)

@@ -1,4 +1,5 @@
 import math
+import random
 
 import pytest
 
@@ -31,7 +32,7 @@ def test_ids_persist_and_speed_is_distance_times_frame_rate():
 @pytest.mark.parametrize("objects", [3, 12])
 def test_a_crowd_keeps_its_ids_and_speeds(objects):
     """A few objects (each pairing checked one by one) and a crowd (past
-    SMALL_ASSIGNMENT pairs, checked all at once): the same ids and speeds either way."""
+    SMALL_ASSIGNMENT pairs, checked all at once) keep their ids and speeds."""
     assert 3 * 3 <= SMALL_ASSIGNMENT < 12 * 12
     tracker = Tracker()
     # Rows 60 px apart; each object moves 2 px/frame right and 1, 2 or 3 px/frame down.
@@ -50,6 +51,30 @@ def test_a_crowd_keeps_its_ids_and_speeds(objects):
     for d in out[-1]:
         step = math.hypot(2, drops[row_of[d.track_id]])
         assert d.speed_px_s == pytest.approx(step * FPS, rel=0.01)
+
+
+def test_both_gate_checks_allow_the_same_pairs():
+    """The plain and the vectorised check agree, pairs at the gate's edge included."""
+    rng = random.Random(7)
+    tracker = Tracker()
+    for _ in range(200):
+        tracker.update([det(rng.uniform(0, 300), rng.uniform(0, 200)) for _ in range(6)], 0.0)
+    tracks = list(tracker.tracks.values())
+    predictions = [track.predict(0.1) for track in tracks]
+    detections = [det(rng.uniform(0, 300), rng.uniform(0, 200)) for _ in range(30)]
+    # Detections on a track's gate (25 px + 20 px x (0.5 + 0.25 x missed) away), and just
+    # inside it.
+    x, y = predictions[0]
+    gate = TrackerConfig().gate_px + 20 * (0.5 + 0.25 * tracks[0].missed)
+    for reach in (gate, gate - 1e-6):
+        detections.append(
+            Detection(Box(round(x + reach) - 10, round(y) - 10, 20, 20), (x + reach, y), 400.0)
+        )
+    plain = tracker._allowed_pairs(detections, tracks, predictions)
+    vectorised = tracker._allowed_pairs_vectorised(detections, tracks, predictions)
+    assert [(d, t) for d, t, _ in plain] == [(d, t) for d, t, _ in vectorised]
+    assert [c for _, _, c in plain] == pytest.approx([c for _, _, c in vectorised])
+    assert (len(detections) - 1, 0) in {(d, t) for d, t, _ in plain}  # Just inside.
 
 
 def test_two_objects_crossing_keep_their_ids():

@@ -47,10 +47,8 @@ except (ValueError, KeyError, TypeError):
 audited = [d for d in deps if "skip_reason" not in d]
 if not audited:
     sys.exit(2)
-unaudited = [
-    d for d in deps if d.get("skip_reason", "distribution marked as editable")
-    != "distribution marked as editable"
-]
+EDITABLE = "distribution marked as editable"
+unaudited = [d for d in deps if "skip_reason" in d and d["skip_reason"] != EDITABLE]
 vulns = [(d, v) for d in audited for v in d["vulns"]]
 for d, v in vulns:
     fix = ", ".join(v["fix_versions"]) or "none yet"

@@ -555,9 +555,10 @@ class MotionRun:
 
     @property
     def problems(self) -> list[str]:
-        """Its log's errors and warnings, and a reading rate below the sustained one."""
+        """The first of its log's errors and warnings (the cause, if any, comes first), and
+        a reading rate below the sustained one."""
         late = f"Motion read {self.read_fps:.1f} fps per camera: its ms per frame is too low"
-        return self.log_problems + ([late] if self.read_fps < SUSTAINED_FPS else [])
+        return self.log_problems[:4] + ([late] if self.read_fps < SUSTAINED_FPS else [])
 
 
 def measure_motion(clips: Sequence[Path], folder: Path, windows: Windows) -> MotionRun:
@@ -709,7 +710,7 @@ def measure_at_load(
 
 def print_motion_problems(motion: MotionRun) -> None:
     if motion.problems:
-        print("Motion's problems:", *motion.problems[-5:], sep="\n    ")
+        print("Motion's problems:", *motion.problems, sep="\n    ")
 
 
 def print_paced(args: argparse.Namespace, paced: list[PacedRow], motion: MotionRun | None) -> None:

@@ -27,7 +27,7 @@ SINGLE_PICTURE = (
 )
 CDNET_MARKERS = ("groundtruth", "temporalROI.txt")
 """Beside these a folder is a CDnet sequence, read from its ``input/`` (its ROI pictures
-are not frames); a folder with fewer than two images and an ``input/`` is read from there."""
+are not frames)."""
 FFMPEG_LOG_QUIET = "-8"
 """``OPENCV_FFMPEG_LOGLEVEL`` for none of FFmpeg's own messages (AV_LOG_QUIET)."""
 _NUMBER = re.compile(r"(\d+)\D*$")
@@ -175,7 +175,8 @@ def _open_folder(folder: Path, fps: float | None, max_pixels: int | None) -> Vid
     if sequence.is_dir() and (
         len(images) < MIN_FRAMES or any((folder / name).exists() for name in CDNET_MARKERS)
     ):
-        # A data set's sequence (CDnet, Wallflower): its frames, not its ROI or label picture.
+        # A data set's sequence (CDnet; Wallflower, whose folder holds one label picture):
+        # its frames, not its ROI or label pictures.
         folder, images = sequence, _images(sequence)
     if not images:
         raise InputError(f"no image frames in folder: {folder}")

@@ -11,8 +11,8 @@ from tests.workers.conftest import make_worker
 def test_a_camera_shows_a_new_workers_status_until_its_process_reports(
     parts: dict[str, Any],
 ) -> None:
-    """``RemoteCamera`` writes out a new ``CameraWorker``'s status by hand: same keys, same
-    values, so the API and /ws show a camera alike before and after its first report."""
+    """Until its process reports, ``RemoteCamera`` shows a new ``CameraWorker``'s status:
+    same keys, same values, so the API and /ws show a camera alike before and after."""
     worker = make_worker(parts, "demo")  # Never started: as a new worker reports.
     process = CameraProcess(3, parts["settings"], parts["bus"])  # Never started either.
     remote = RemoteCamera({"id": worker.camera_id, "active": 0}, process)

@@ -49,7 +49,8 @@ def _check_source(value: str | None) -> str | None:
 
 
 def _check_new_source(value: str) -> str:
-    """A new camera's source: one whose password is the mask was copied from the API."""
+    """A new camera's source. A password that reads as the mask was copied from what the
+    API shows, not typed: refused."""
     if has_masked_password(value):
         raise ValueError(
             f"{MASK} is how Vigil shows a stored password, not a password: type the password"

@@ -43,7 +43,8 @@ STABLE_FRAMES = 100
 
 PLAIN_SLEEP_S = 0.1
 """Waits for the next frame up to this long are a plain sleep, about 40 us of CPU cheaper
-to wake from than an Event's wait (measured here); a stop is then seen within it."""
+to wake from than an Event's wait (measured here); a stop is then seen when it ends (this
+late at most), before another frame."""
 
 SETTING_FIELDS = ("sensitivity", "min_area", "method", "show_mask", "mask")
 

@@ -13,6 +13,7 @@ from pathlib import Path
 from typing import Any
 
 from fastapi import FastAPI
+from fastapi.exceptions import RequestValidationError
 from fastapi.staticfiles import StaticFiles
 from starlette.types import ASGIApp, Message, Receive, Scope, Send
 
@@ -28,6 +29,7 @@ from app.api.routes import (
     streams,
     ws,
 )
+from app.api.routes.inputs import validation_error
 from app.api.security import Access, AccessControl, CrossOriginGuard, SecurityHeaders
 from app.api.services import Services
 from app.core.config import Settings
@@ -61,6 +63,7 @@ def create_app(settings: Settings | None = None) -> FastAPI:
     application.state.access = access
     for module in (health, auth, cameras, streams, analyses, events, snapshots, ws, pages):
         application.include_router(module.router)
+    application.add_exception_handler(RequestValidationError, validation_error)
     if STATIC_DIR.is_dir():
         application.mount("/static", StaticFiles(directory=STATIC_DIR), name="static")
     # The last added runs first: headers on every answer, then the cross-site check,

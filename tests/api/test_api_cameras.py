@@ -217,6 +217,15 @@ def test_source_passwords_are_never_shown(serve: Callable[..., Running], tmp_pat
             assert stored(cam) == f"{real}?s=1"
             copied = httpx.post(f"{base}/api/cameras", json={"name": "copy", "source": shown})
             assert copied.status_code == 422 and "type the password" in copied.text
+            # A refused body never echoes a password: not in the reason, not in the input.
+            for body in (
+                {"name": "x", "source": f"ftp://admin:{password}@{host}/x"},
+                {"name": "x", "source": f"http://admin:{password}@/x"},
+                {"source": real},  # No name: the whole body comes back.
+            ):
+                refused = httpx.post(f"{base}/api/cameras", json=body)
+                assert refused.status_code == 422 and password not in refused.text, refused.text
+                assert "***" in refused.text
 
             # A new source replaces it, here with a wrong password: the camera is refused.
             wrong = f"http://admin:wrong-pw@{host}/video.mjpg"

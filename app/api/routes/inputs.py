@@ -4,7 +4,8 @@ JSON bodies without NaN or Infinity.
 Python's json module reads ``NaN`` and ``Infinity``, which are not JSON, and turns
 ``1e999`` into infinity. A body holding one was refused with a 422 whose echo of the input
 could not itself be written as JSON, so the client got a 500 instead. Routers built
-with ``route_class=StrictJsonRoute`` refuse such a body as malformed JSON.
+with ``route_class=StrictJsonRoute`` refuse such a body as malformed JSON. A 422's echo
+of the input has URL passwords masked (``validation_error``).
 """
 
 from __future__ import annotations
@@ -15,7 +16,12 @@ from collections.abc import Callable, Coroutine
 from typing import Annotated, Any
 
 from fastapi import Query, Request, Response
+from fastapi.encoders import jsonable_encoder
+from fastapi.exceptions import RequestValidationError
+from fastapi.responses import JSONResponse
 from fastapi.routing import APIRoute
+
+from app.sources.live import without_password
 
 MAX_ID = 2**63 - 1
 """SQLite's largest integer: a larger id names nothing (and SQLite refuses to bind it)."""
@@ -71,3 +77,22 @@ class StrictJsonRoute(APIRoute):
             return await handler(_StrictJsonRequest(request.scope, request.receive))
 
         return strict_handler
+
+
+async def validation_error(request: Request, exc: Exception) -> JSONResponse:
+    """FastAPI's 422, with every URL password in the echoed input masked: a refused
+    camera source must not carry its password back (to logs, proxies, browser tools)."""
+    assert isinstance(exc, RequestValidationError)  # What it is registered for.
+    return JSONResponse(
+        status_code=422, content={"detail": _masked(jsonable_encoder(exc.errors()))}
+    )
+
+
+def _masked(value: Any) -> Any:
+    if isinstance(value, str):
+        return without_password(value)
+    if isinstance(value, dict):
+        return {key: _masked(item) for key, item in value.items()}
+    if isinstance(value, list):
+        return [_masked(item) for item in value]
+    return value

@@ -51,8 +51,15 @@ def parse_source(text: str) -> SourceSpec:
     if re.fullmatch(r"\d{1,3}", raw):
         return SourceSpec("device", raw, raw)
     if lowered.startswith(("rtsp://", "rtsps://", "http://", "https://")):
-        if not urlparse(raw).hostname:
+        url = urlparse(raw)
+        if not url.hostname:
             raise ValueError(f"URL has no host: {without_password(raw)}")
+        try:
+            port_ok = url.port != 0  # None (the scheme's own) or 1..65535.
+        except ValueError:  # Past 65535, or not a number.
+            port_ok = False
+        if not port_ok:
+            raise ValueError(f"URL port is not 1..65535: {without_password(raw)}")
         return SourceSpec("rtsp" if lowered.startswith("rtsp") else "http", raw, raw)
     if lowered.startswith("file://"):
         parsed = urlparse(raw)
@@ -72,7 +79,18 @@ def parse_source(text: str) -> SourceSpec:
 MASK = "***"
 """What logs and the API show in place of a source's password (``without_password``)."""
 
-SECRET_PARAMS = ("password", "passwd", "pass", "pwd", "pswd", "psw", "pw", "loginpas")
+SECRET_PARAMS = (
+    "password",
+    "passwd",
+    "pass",
+    "pwd",
+    "pswd",
+    "psw",
+    "pw",
+    "loginpas",
+    "token",
+    "auth",
+)
 """Parameters that carry a camera's password, in its query (``/video.cgi?user=admin&pwd=``)
 or its path (``rtsp://dvr/user=admin&password=...&channel=1.sdp``)."""
 USER_PARAMS = ("user", "usr", "username", "loginuse")

@@ -40,7 +40,18 @@ def test_parse_source(text: str, kind: str, target: str) -> None:
     assert (spec.kind, spec.target) == (kind, target)
 
 
-@pytest.mark.parametrize("text", ["", "   ", "ftp://x/y", "http://"])
+@pytest.mark.parametrize(
+    "text",
+    [
+        "",
+        "   ",
+        "ftp://x/y",
+        "http://",
+        "http://cam:99999/x",
+        "rtsp://cam:0x/live",
+        "http://cam:0/x",
+    ],
+)
 def test_parse_source_rejects(text: str) -> None:
     with pytest.raises(ValueError):
         parse_source(text)
@@ -90,6 +101,7 @@ def test_parse_source_reasons_leave_out_passwords(source: str) -> None:
         ("http://cam/v.cgi?loginuse=a&loginpas=pw", "http://cam/v.cgi?loginuse=a&loginpas=***"),
         ("http://cam/v?user=a;pwd=pw;res=1", "http://cam/v?user=a;pwd=***;res=1"),
         ("http://cam/compwd=x", "http://cam/compwd=x"),  # Not a parameter's whole name.
+        ("http://cam/v?token=t0k&auth=u:p", "http://cam/v?token=***&auth=***"),
     ],
 )
 def test_sources_are_shown_without_passwords(source: str, logged: str) -> None:

@@ -181,6 +181,9 @@ class CameraWorker:
         except SourceError as exc:
             # An open event ends with the picture; detection starts afresh on return.
             self._deactivate(time.time())
+            if self.state != "live":  # Nothing came that decodes: it did not really open.
+                self._failed(str(exc), backoff)
+                return min(backoff * 2, self.settings.reconnect_max_s)
             self._lost(str(exc), self.settings.reconnect_min_s)
         finally:
             self._source = None
@@ -235,6 +238,9 @@ class CameraWorker:
             try:
                 frame = source.read()
                 if first:
+                    # Live once a picture decodes: a camera sending only broken JPEGs is
+                    # not live, though an idle one decodes nothing (detection's grey, kept).
+                    frame.gray(PipelineConfig.detect_width)
                     self._was_live = True
                     self._set_state("live", "")
                     first = False

@@ -145,3 +145,21 @@ def test_worker_that_keeps_failing_settles_in_error_saying_why(
         assert "worker failed 3 times in a row" in worker.reason
         assert "database" in worker.reason.lower(), worker.reason
         assert worker._thread.is_alive(), "the worker keeps trying"
+
+
+def test_camera_whose_pictures_never_decode_shows_error_not_live(
+    tmp_path: Path,
+) -> None:
+    """A file whose every JPEG has a frame header but no picture (its scan marker gone):
+    the camera is never live, even idle (which decodes nothing else), and settles in
+    error saying why; it keeps retrying."""
+    video = write_video(tmp_path / "v.avi")
+    broken = tmp_path / "broken.avi"
+    broken.write_bytes(video.read_bytes().replace(b"\xff\xda", b"\xff\xd9"))
+    parts = worker_parts(tmp_path, bad_frames_limit=5)
+    log = StatusLog(parts)
+    with running(make_worker(parts, f"file://{broken}")) as worker:
+        wait_for(lambda: worker.state == "error", 15, "the error state")
+        assert "does not decode" in worker.reason and "retrying" in worker.reason
+        assert "live" not in {state for state, _ in log.states()}
+        assert worker._thread.is_alive(), "it keeps trying"

@@ -11,7 +11,11 @@ FFmpeg hands over the camera's own JPEGs, decoded later only as far as needed
 
 from __future__ import annotations
 
+import base64
+import http.client
 import re
+import socket
+import time
 from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
@@ -217,6 +221,63 @@ def with_stored_password(source: str, stored: str) -> str:
     )
 
 
+def why_not_open(url: str, timeout_ms: int) -> str:
+    """Why a network camera did not open, as far as asking it again can tell (FFmpeg
+    says nothing through OpenCV): ``": ..."`` to append to the reason, or ``""``.
+
+    An http camera is asked for the stream the way FFmpeg asks (basic auth from the URL):
+    a refused login, another HTTP status or an answer that is not a picture stream is
+    named. For other schemes, whether the port refuses or does not answer. Never the
+    password: only the status, the content type or the socket's error.
+    """
+    parsed = urlparse(url)
+    try:
+        port = parsed.port or {"http": 80, "https": 443, "rtsp": 554}.get(parsed.scheme.lower())
+    except ValueError:
+        return ""
+    if not parsed.hostname or port is None:
+        return ""
+    timeout_s = timeout_ms / 1000
+    if parsed.scheme.lower() != "http":
+        try:
+            socket.create_connection((parsed.hostname, port), timeout_s).close()
+        except OSError as exc:
+            return f": {_socket_error(exc, port)}"
+        return ""
+    path = (parsed.path or "/") + (f"?{parsed.query}" if parsed.query else "")
+    headers = {}
+    if parsed.username is not None:
+        login = f"{unquote(parsed.username)}:{unquote(parsed.password or '')}"
+        headers["Authorization"] = "Basic " + base64.b64encode(login.encode()).decode()
+    connection = http.client.HTTPConnection(parsed.hostname, port, timeout=timeout_s)
+    try:
+        connection.request("GET", path, headers=headers)
+        answer = connection.getresponse()
+        status, why, kind = answer.status, answer.reason, answer.getheader("Content-Type", "")
+    except OSError as exc:
+        return f": {_socket_error(exc, port)}"
+    except http.client.HTTPException:
+        return ": it does not answer as an http server"
+    finally:
+        connection.close()
+    if status in (401, 403):
+        return f": it refused the user and password (HTTP {status})"
+    if status >= 300:
+        return f": it answered HTTP {status} {why}"
+    kind = kind.split(";")[0].strip().lower()
+    if kind.startswith(("multipart/", "image/")):
+        return ""
+    return f": it answered with {kind or 'no content type'}, not a picture stream"
+
+
+def _socket_error(error: object, port: int) -> str:
+    if isinstance(error, ConnectionRefusedError):
+        return f"nothing listens on port {port}"
+    if isinstance(error, TimeoutError):
+        return "no answer"
+    return str(error)
+
+
 class FrameSource(Protocol):
     fps: float
     paced: bool
@@ -369,11 +430,15 @@ class CaptureSource:
             cv2.CAP_PROP_READ_TIMEOUT_MSEC,
             read_timeout_ms,
         ]
+        started = time.monotonic()
         capture = cv2.VideoCapture(url, cv2.CAP_FFMPEG, params)
         host = urlparse(url).hostname or without_password(url)
         if not capture.isOpened():
             capture.release()
-            raise SourceError(f"cannot open stream from {host}")
+            # A camera that let the open time out would let a second question time out too.
+            timed_out = time.monotonic() - started >= 0.9 * open_timeout_ms / 1000
+            why = ": no answer" if timed_out else why_not_open(url, open_timeout_ms)
+            raise SourceError(f"cannot open stream from {host}{why}")
         packets = jpeg_packets(capture)
         return cls(capture, f"{urlparse(url).scheme} stream from {host}", packets)
 

@@ -2,7 +2,11 @@
 
 from __future__ import annotations
 
+import socket
+import threading
 import time
+from functools import partial
+from http.server import SimpleHTTPRequestHandler, ThreadingHTTPServer
 from pathlib import Path
 
 import pytest
@@ -14,6 +18,7 @@ from app.sources.live import (
     SourceError,
     open_source,
     parse_source,
+    why_not_open,
     with_stored_password,
     without_password,
 )
@@ -240,3 +245,35 @@ def test_settings_from_environment(monkeypatch: pytest.MonkeyPatch, tmp_path: Pa
     assert (settings.port, settings.data_dir, settings.password) == (9123, tmp_path, "pw")
     assert settings.db_path == tmp_path / "vigil.db"
     assert Settings(port=1).port == 1
+
+
+def test_why_a_network_camera_did_not_open_is_named(tmp_path: Path) -> None:
+    """Asked again after FFmpeg failed, a camera says why: a refused login, a page that is
+    not a picture stream, a port where nothing listens. Never with the password."""
+    camera = MjpegCamera(auth=("admin", "right-pw")).start()
+    page = tmp_path / "site"
+    page.mkdir()
+    (page / "index.html").write_text("<html>a router's login page</html>")
+    web = ThreadingHTTPServer(
+        ("127.0.0.1", 0), partial(SimpleHTTPRequestHandler, directory=str(page))
+    )
+    threading.Thread(target=web.serve_forever, daemon=True).start()
+    with socket.socket() as unused:
+        unused.bind(("127.0.0.1", 0))
+        closed = unused.getsockname()[1]  # Nothing listens once this closes.
+    try:
+        wrong = why_not_open(f"http://admin:wrong-pw@127.0.0.1:{camera.port}/video.mjpg", 2000)
+        assert "refused the user and password (HTTP 401)" in wrong and "wrong-pw" not in wrong
+        right = why_not_open(f"http://admin:right-pw@127.0.0.1:{camera.port}/video.mjpg", 2000)
+        assert right == ""  # It serves the stream: nothing more to say.
+        html = why_not_open(f"http://127.0.0.1:{web.server_address[1]}/", 2000)
+        assert "text/html, not a picture stream" in html
+        missing = why_not_open(f"http://127.0.0.1:{web.server_address[1]}/x.mjpg", 2000)
+        assert "HTTP 404" in missing
+        for scheme in ("http", "rtsp"):
+            refused = why_not_open(f"{scheme}://u:pw@127.0.0.1:{closed}/live", 2000)
+            assert refused == f": nothing listens on port {closed}"
+    finally:
+        camera.stop()
+        web.shutdown()
+        web.server_close()

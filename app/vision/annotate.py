@@ -80,3 +80,24 @@ def difference_picture(difference: GrayImage, size: tuple[int, int]) -> GrayImag
     """The paper's difference image for a snapshot: stretched to full contrast, at ``size``."""
     stretched = cv2.normalize(difference, np.empty_like(difference), 0, 255, cv2.NORM_MINMAX)
     return to_size(stretched, size)
+
+
+def status_card(title: str, detail: str, size: tuple[int, int] = (640, 360)) -> Image:
+    """A dark picture saying why there is no picture: ``title`` large, ``detail`` wrapped
+    below it (for a stream whose camera is down)."""
+    width, height = size
+    card = np.full((height, width, 3), 32, np.uint8)
+    cv2.putText(card, title, (24, 64), cv2.FONT_HERSHEY_SIMPLEX, 1.2, WHITE, 2, cv2.LINE_AA)
+    line, lines = "", []
+    for word in detail.split():
+        wider = f"{line} {word}".strip()
+        fits = cv2.getTextSize(wider, cv2.FONT_HERSHEY_SIMPLEX, 0.6, 1)[0][0] <= width - 48
+        if line and not fits:
+            lines.append(line)
+            wider = word
+        line = wider
+    lines.append(line)
+    for row, text in enumerate(lines[: (height - 110) // 26]):
+        origin = (24, 110 + 26 * row)
+        cv2.putText(card, text, origin, cv2.FONT_HERSHEY_SIMPLEX, 0.6, WHITE, 1, cv2.LINE_AA)
+    return card

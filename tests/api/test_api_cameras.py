@@ -9,9 +9,10 @@ from pathlib import Path
 from typing import Any
 
 import httpx
+import numpy as np
 
 from app.storage import Database
-from tests.api.vigil_livekit import MjpegCamera, Running, WsClient, wait_for
+from tests.api.vigil_livekit import MjpegCamera, Running, WsClient, read_mjpeg_frames, wait_for
 
 
 def test_health_and_page(serve: Callable[..., Running]) -> None:
@@ -115,6 +116,12 @@ def test_camera_that_cannot_open_shows_error(serve: Callable[..., Running], tmp_
     assert "file not found" in camera["reason"]
     frame = httpx.get(f"{server.base}/api/cameras/{cam}/frame.jpg", timeout=10)
     assert frame.status_code == 503 and "error" in frame.json()["detail"]
+    # A viewer of its stream gets one picture that says so (not a blank that never ends).
+    url = f"{server.base}/api/cameras/{cam}/stream.mjpg"
+    with httpx.stream("GET", url, timeout=10) as stream:
+        (card,) = read_mjpeg_frames(stream.iter_bytes(), 1)
+    assert card.shape == (360, 640, 3)
+    assert 0.01 < np.mean(card > 128) < 0.2, "light text on a dark card"
     _, camera = in_error(str(tmp_path))
     assert camera["reason"].startswith(f"a folder, not a video file: {tmp_path}")
 

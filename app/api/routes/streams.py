@@ -9,8 +9,9 @@ from fastapi import APIRouter, HTTPException, Request, Response
 from fastapi.responses import StreamingResponse
 
 from app.api.services import services, worker_or_404
+from app.vision.annotate import status_card
 from app.workers.camera_host import Camera
-from app.workers.hub import Kind, Picture
+from app.workers.hub import Kind, Picture, encode_jpeg
 
 router = APIRouter(prefix="/api/cameras", tags=["streams"])
 
@@ -27,16 +28,25 @@ def mjpeg_part(data: bytes) -> bytes:
 
 
 async def _frames(request: Request, camera: Camera, kind: Kind) -> AsyncIterator[bytes]:
+    """The camera's frames as MJPEG parts. While it is down (``error``, ``reconnecting``)
+    a viewer gets one card saying so and why, then its frames as soon as it is back."""
     svc = services(request)
     hub = camera.hub
     seq = 0
+    carded: tuple[str, str] | None = None  # The state the last card told of.
     with hub.watch(kind):
         while not svc.closing and not hub.closed:
             item = await hub.next(seq, 1.0, kind)
             if await request.is_disconnected():
                 return
             if item is None:
+                state = (camera.state, camera.reason)
+                if state[0] not in ("connecting", "live") and state != carded:
+                    carded = state
+                    card = status_card(f"camera {state[0]}", state[1])
+                    yield mjpeg_part(await asyncio.to_thread(encode_jpeg, card))
                 continue
+            carded = None
             seq = item.seq
             encode = item.histogram_jpeg if kind == "histogram" else item.jpeg
             data = await asyncio.to_thread(encode)

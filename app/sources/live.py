@@ -190,9 +190,9 @@ def with_stored_password(source: str, stored: str) -> str:
     - A password reads ``MASK`` and the rest changed (another stream path, say): the
       stored password is put back in its place, if ``source`` goes to the same scheme,
       user (of ``user:password@`` and of ``USER_PARAMS``), host and port as ``stored``
-      and ``stored`` has a password in that place. A
-      password is never sent to another server than the one it was given for, so moving
-      a camera to another address means typing its password.
+      and ``stored`` has a password in that place. A password is never sent to another
+      server than the one it was given for, so moving a camera to another address means
+      typing its password.
     - Otherwise ``ValueError`` saying why (without the password).
 
     A password that really is ``***`` is written percent-encoded: ``%2A%2A%2A``.
@@ -270,7 +270,7 @@ def why_not_open(url: str, timeout_ms: int) -> str:
     return f": it answered with {kind or 'no content type'}, not a picture stream"
 
 
-def _socket_error(error: object, port: int) -> str:
+def _socket_error(error: OSError, port: int) -> str:
     if isinstance(error, ConnectionRefusedError):
         return f"nothing listens on port {port}"
     if isinstance(error, TimeoutError):

@@ -86,18 +86,19 @@ def status_card(title: str, detail: str, size: tuple[int, int] = (640, 360)) -> 
     """A dark picture saying why there is no picture: ``title`` large, ``detail`` wrapped
     below it (for a stream whose camera is down)."""
     width, height = size
+    margin, first_line, line_height = 24, 110, 26
+    font = cv2.FONT_HERSHEY_SIMPLEX
     card = np.full((height, width, 3), 32, np.uint8)
-    cv2.putText(card, title, (24, 64), cv2.FONT_HERSHEY_SIMPLEX, 1.2, WHITE, 2, cv2.LINE_AA)
+    cv2.putText(card, title, (margin, 64), font, 1.2, WHITE, 2, cv2.LINE_AA)
     line, lines = "", []
     for word in detail.split():
         wider = f"{line} {word}".strip()
-        fits = cv2.getTextSize(wider, cv2.FONT_HERSHEY_SIMPLEX, 0.6, 1)[0][0] <= width - 48
-        if line and not fits:
+        if line and cv2.getTextSize(wider, font, 0.6, 1)[0][0] > width - 2 * margin:
             lines.append(line)
             wider = word
         line = wider
     lines.append(line)
-    for row, text in enumerate(lines[: (height - 110) // 26]):
-        origin = (24, 110 + 26 * row)
-        cv2.putText(card, text, origin, cv2.FONT_HERSHEY_SIMPLEX, 0.6, WHITE, 1, cv2.LINE_AA)
+    for row, text in enumerate(lines[: (height - first_line) // line_height]):
+        origin = (margin, first_line + line_height * row)
+        cv2.putText(card, text, origin, font, 0.6, WHITE, 1, cv2.LINE_AA)
     return card

@@ -18,6 +18,8 @@ router = APIRouter(prefix="/api/cameras", tags=["streams"])
 BOUNDARY = "frame"
 MJPEG_TYPE = f"multipart/x-mixed-replace; boundary={BOUNDARY}"
 NO_CACHE = {"Cache-Control": "no-store, no-cache, must-revalidate", "Pragma": "no-cache"}
+SENDING = ("connecting", "live")
+"""Camera states in which pictures come (or are about to): in any other it is down."""
 
 
 def mjpeg_part(data: bytes) -> bytes:
@@ -41,7 +43,7 @@ async def _frames(request: Request, camera: Camera, kind: Kind) -> AsyncIterator
                 return
             if item is None:
                 state = (camera.state, camera.reason)
-                if state[0] not in ("connecting", "live") and state != carded:
+                if state[0] not in SENDING and state != carded:
                     carded = state
                     card = status_card(f"camera {state[0]}", state[1])
                     yield mjpeg_part(await asyncio.to_thread(encode_jpeg, card))
@@ -75,7 +77,7 @@ async def _latest(camera: Camera, kind: Kind) -> Picture:
     """A fresh frame: a poller counts as a viewer until it has one (a camera process
     sends pictures only while someone watches)."""
     item = None
-    if camera.state in ("connecting", "live"):
+    if camera.state in SENDING:
         with camera.hub.watch(kind):
             latest = camera.hub.latest
             item = await camera.hub.next(latest.seq if latest else 0, 3.0, kind)

@@ -210,6 +210,9 @@ def _analyze(args: argparse.Namespace) -> int:
         return _fail("analyze", f"{exc.strerror or exc}: {exc.filename or out}")
     if not args.quiet:
         print(_summary(report, out))
+    # Warnings are not progress or a summary: --quiet keeps them (a script wants to know).
+    for warning in report.get("warnings", []):
+        _warn("analyze", warning)
     _warn_if_nothing_scored("analyze", report.get("evaluation"))
     return 0
 
@@ -270,12 +273,16 @@ def _evaluate(args: argparse.Namespace) -> int:
     return 0
 
 
+def _warn(command: str, message: str) -> None:
+    print(f"vigil {command}: warning: {message}", file=sys.stderr)
+
+
 def _warn_if_nothing_scored(command: str, evaluation: dict[str, Any] | None) -> None:
     if evaluation is not None and not evaluation["frames_scored"]:
-        print(
-            f"vigil {command}: warning: no frame of the input has ground truth "
+        _warn(
+            command,
+            "no frame of the input has ground truth "
             "(check the truth's frame numbers); nothing was scored",
-            file=sys.stderr,
         )
 
 

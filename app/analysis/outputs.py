@@ -61,16 +61,40 @@ class TracksCsv:
 
 
 class AnnotatedVideo:
-    """annotated.avi, Motion-JPEG: every OpenCV build writes it and every player reads it."""
+    """annotated.avi, Motion-JPEG: every OpenCV build writes it and every player reads it.
+
+    Frame for frame with the input: frame N of the video is decode index N, and a frame
+    of the input that did not decode is the previous annotated frame again.
+    """
 
     def __init__(self, path: Path, fps: float, size: tuple[int, int]) -> None:
         fourcc = cv2.VideoWriter.fourcc(*"MJPG")
         self._writer = cv2.VideoWriter(str(path), fourcc, fps, size)
         if not self._writer.isOpened():
             raise OSError(f"cannot write video {path}")
+        self._written = 0
+        self._last: Image | None = None
 
-    def write(self, frame: Image) -> None:
+    def write(self, frame: Image, index: int | None = None) -> None:
+        """Write ``frame`` as decode index ``index`` (default: the next one)."""
+        if index is not None:
+            self._repeat_until(index, frame)
         self._writer.write(frame)
+        self._written += 1
+        self._last = frame
+
+    def pad_to(self, frames: int) -> None:
+        """Repeat the last frame until the video holds ``frames`` frames."""
+        if self._last is not None:
+            self._repeat_until(frames, self._last)
+
+    def _repeat_until(self, frames: int, first: Image) -> None:
+        # Before any frame was written (the input's first frames did not decode), the
+        # first one that did stands in for them.
+        filler = self._last if self._last is not None else first
+        while self._written < frames:
+            self._writer.write(filler)
+            self._written += 1
 
     def close(self) -> None:
         self._writer.release()

@@ -32,6 +32,8 @@ from app.vision.types import Image
 
 Progress = Callable[[int, int | None], None]
 """Called with (frames done, frames expected or None) as the analysis goes."""
+MAX_FRAMES_NAMED = 10
+"""Skipped frames a warning names one by one (report.json lists them all)."""
 FrameObserver = Callable[[Image], None]
 """Called with each annotated frame (for a live view of a running analysis)."""
 
@@ -165,19 +167,22 @@ class _Analysis:
         video = AnnotatedVideo(self.out / "annotated.avi", self.source.fps, self.source.size)
         frames = 0
         try:
-            for frame in self.source.frames():
+            for index, frame in self.source.indexed_frames():
                 if self.first_frame is None:
                     self.first_frame = frame
-                result = self.pipeline.process(frame)
+                # A skipped frame keeps its decode index: the frames after it keep their times.
+                time_s = index / self.source.fps
+                result = self.pipeline.process(frame, time_s)
                 annotated = self.annotator(frame, result.detections, self.pipeline.tracker.trails())
-                video.write(annotated)
+                video.write(annotated, index)
                 if self.on_frame is not None:
                     self.on_frame(annotated)
-                tracks_csv.write(result.index, result.time_s, result.detections)
-                self._record(result, annotated)
+                tracks_csv.write(index, time_s, result.detections)
+                self._record(index, result, annotated)
                 frames += 1
                 if self.progress:
-                    self.progress(frames, self.source.expected_frames)
+                    self.progress(index + 1, self.source.expected_frames)
+            video.pad_to(self.source.frames_read)
         finally:
             tracks_csv.close()
             video.close()
@@ -193,8 +198,8 @@ class _Analysis:
         write_report_html(self.out / "report.html", report, self._html_extras())
         return report
 
-    def _record(self, result: FrameResult, annotated: Image) -> None:
-        index, time_s = result.index, result.time_s
+    def _record(self, index: int, result: FrameResult, annotated: Image) -> None:
+        time_s = result.time_s
         if self.options.masks or self.scoring is not None:
             mask_full = to_size(result.mask, self.source.size)
             if self.options.masks:
@@ -226,18 +231,18 @@ class _Analysis:
             summary.add(index, time_s, d)
         update = self.alarms.update(index, time_s, result.detections)
         if update.started is not None:
-            self._snapshot(update.started, annotated, result)
+            self._snapshot(update.started, index, annotated, result)
         if update.ended is not None:
             self._close_event(update.ended)
 
-    def _snapshot(self, event: MotionEvent, annotated: Image, result: FrameResult) -> None:
+    def _snapshot(
+        self, event: MotionEvent, index: int, annotated: Image, result: FrameResult
+    ) -> None:
         name = f"event-{event.id:04d}.jpg"
         write_image(self.out / "snapshots" / name, annotated)
         difference = difference_picture(result.difference, self.source.size)
         write_image(self.out / "differences" / name, difference)
-        self.key_frames.append(
-            {"event": event.id, "frame": result.index, "snapshot": f"snapshots/{name}"}
-        )
+        self.key_frames.append({"event": event.id, "frame": index, "snapshot": f"snapshots/{name}"})
 
     def _close_event(self, event: MotionEvent) -> None:
         record = event.as_dict()
@@ -256,11 +261,15 @@ class _Analysis:
             "vigil_version": app.__version__,
             "input": self.options.input_name or str(self.source.path),
             "frames": frames,
+            "frames_read": self.source.frames_read,
+            "skipped_frames": self.source.skipped,
             "header_frames": self.source.header_frames,
+            "ended_early": self.source.ended_early,
+            "warnings": input_warnings(self.source, frames),
             "fps": self.source.fps,
             "size": list(self.source.size),
             "frame_numbers": self.source.frame_numbers,
-            "duration_s": round(frames / self.source.fps, 4),
+            "duration_s": round(self.source.frames_read / self.source.fps, 4),
             "method": config.method,
             "settings": _settings(config, self.pipeline, self.options),
             "tracks": [t.as_dict() for t in sorted(self.tracks.values(), key=lambda t: t.track_id)],
@@ -284,6 +293,30 @@ class _Analysis:
             "out_dir": self.out,
             "key_frames": self.key_frames,
         }
+
+
+def input_warnings(source: VideoInput, frames: int) -> list[str]:
+    """One line for each way the input was not read whole: frames skipped, an early end."""
+    warnings = []
+    skipped = source.skipped
+    if skipped:
+        shown = ", ".join(map(str, skipped[:MAX_FRAMES_NAMED]))
+        more = f" ... ({len(skipped)} in all)" if len(skipped) > MAX_FRAMES_NAMED else ""
+        warnings.append(
+            f"{len(skipped)} {_frames(len(skipped))} did not decode and "
+            f"{'were' if len(skipped) > 1 else 'was'} skipped: "
+            f"{_frames(len(skipped))} {shown}{more} (0-based decode index)"
+        )
+    if source.ended_early:
+        warnings.append(
+            f"the video ended early: {frames} frames decoded of the {source.header_frames} "
+            f"its header claims (cut short, or damaged from frame {source.frames_read} on)"
+        )
+    return warnings
+
+
+def _frames(count: int) -> str:
+    return "frame" if count == 1 else "frames"
 
 
 def _settings(

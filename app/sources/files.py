@@ -1,7 +1,11 @@
 """Frames from a recorded video file or a folder of images (offline mode).
 
 The header's frame count is never trusted (some AVIs claim 444 frames and
-hold 68): frames are decoded until the reader stops.
+hold 68): frames are decoded until the reader stops. A frame that does not
+decode (a damaged JPEG in an MJPEG AVI, a corrupt image in a folder) is
+skipped and keeps its place: the frames after it keep their decode index,
+so their times stay right. A video is read until MAX_BAD_RUN frames in a row
+fail, which is also how its end looks to the reader.
 """
 
 from __future__ import annotations
@@ -9,7 +13,7 @@ from __future__ import annotations
 import math
 import re
 from collections.abc import Iterator
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from pathlib import Path
 
 import cv2
@@ -21,6 +25,12 @@ DEFAULT_FPS = 25.0
 """The rate assumed for a folder of frames, or a video whose header gives none that is sane."""
 MAX_FPS = 1000.0
 MIN_FRAMES = 2
+MAX_BAD_RUN = 100
+"""Frames in a row that may fail to decode before a video is taken to end there (its end
+looks the same to the reader, and reading past it costs microseconds a frame)."""
+HEADER_SLACK = 0.01
+"""A video read this much short of its header's frame count (at least one frame) is not
+reported as cut short: some containers' counts are estimates from the duration."""
 """Motion needs two frames: a still picture (a PNG named .avi) is not a video to analyse."""
 SINGLE_PICTURE = (
     "{path} holds only one decodable frame (a picture, not a video?): motion needs at least two"
@@ -70,6 +80,11 @@ class VideoInput:
     """Sorted frame files, for a folder input."""
     header_frames: int | None = None
     """What the container claims; informational only."""
+    skipped: list[int] = field(default_factory=list)
+    """Decode indices of the frames that did not decode and were skipped (filled as
+    ``indexed_frames`` reads)."""
+    frames_read: int = 0
+    """Decode indices read so far: the index after the last frame read (decoded or skipped)."""
 
     @property
     def expected_frames(self) -> int | None:
@@ -81,37 +96,82 @@ class VideoInput:
         """Numbers in the frame files' names (CDnet in000950.jpg -> 950), for truth matching."""
         return [frame_number(p) for p in self.images] if self.images is not None else None
 
+    @property
+    def ended_early(self) -> bool:
+        """Whether reading stopped well short of the frames the video's header claims."""
+        if self.images is not None or not self.header_frames:
+            return False
+        return self.header_frames - self.frames_read > max(1, self.header_frames * HEADER_SLACK)
+
     def frames(self) -> Iterator[Image]:
-        if self.images is not None:
-            for image_path in self.images:
-                frame = cv2.imread(str(image_path), cv2.IMREAD_COLOR)
-                if frame is None:
-                    raise InputError(f"cannot decode image {image_path.name}")
-                if (frame.shape[1], frame.shape[0]) != self.size:
-                    raise InputError(
-                        f"{image_path.name} is {frame.shape[1]}x{frame.shape[0]}, "
-                        f"the first frame was {self.size[0]}x{self.size[1]}"
-                    )
-                yield frame
-            return
+        """The frames that decode, in order."""
+        for _, frame in self.indexed_frames():
+            yield frame
+
+    def indexed_frames(self) -> Iterator[tuple[int, Image]]:
+        """(decode index, frame) for every frame that decodes; the ones that do not are
+        skipped, keep their index and are listed in ``skipped``."""
+        self.skipped, self.frames_read = [], 0
+        failed: list[int] = []
+        for index, frame in self._images() if self.images is not None else self._video():
+            if frame is None:
+                failed.append(index)
+                continue
+            self.skipped += failed  # Frames after them decoded: they were damaged, not the end.
+            failed = []
+            self.frames_read = index + 1
+            yield index, frame
+        if self.images is not None:  # Each image is a frame, the last ones too.
+            self.skipped += failed
+            self.frames_read = len(self.images)
+
+    def _images(self) -> Iterator[tuple[int, Image | None]]:
+        assert self.images is not None
+        for index, image_path in enumerate(self.images):
+            frame = cv2.imread(str(image_path), cv2.IMREAD_COLOR)
+            if frame is not None and (frame.shape[1], frame.shape[0]) != self.size:
+                raise InputError(
+                    f"{image_path.name} is {frame.shape[1]}x{frame.shape[0]}, "
+                    f"the first frame was {self.size[0]}x{self.size[1]}"
+                )
+            yield index, frame
+
+    def _video(self) -> Iterator[tuple[int, Image | None]]:
         capture = cv2.VideoCapture(str(self.path), cv2.CAP_FFMPEG)
         try:
-            index = 0
-            while True:
+            index = bad_run = 0
+            while bad_run < MAX_BAD_RUN:
                 ok, frame = capture.read()
                 if not ok or frame is None:
-                    return
-                # A stream can switch to other (larger) frames mid-way; every later stage
-                # and the annotated video assume the first frame's size.
-                if (frame.shape[1], frame.shape[0]) != self.size:
-                    raise InputError(
-                        f"frame {index} is {frame.shape[1]}x{frame.shape[0]}, "
-                        f"the first frame was {self.size[0]}x{self.size[1]}"
-                    )
+                    bad_run += 1
+                    yield index, None
+                else:
+                    # A stream can switch to other (larger) frames mid-way; every later stage
+                    # and the annotated video assume the first frame's size.
+                    if (frame.shape[1], frame.shape[0]) != self.size:
+                        raise InputError(
+                            f"frame {index} is {frame.shape[1]}x{frame.shape[0]}, "
+                            f"the first frame was {self.size[0]}x{self.size[1]}"
+                        )
+                    bad_run = 0
+                    yield index, frame
                 index += 1
-                yield frame
         finally:
             capture.release()
+
+
+def _read_good(capture: cv2.VideoCapture) -> Image | None:
+    """The next frame that decodes, skipping at most MAX_BAD_RUN that do not."""
+    for _ in range(MAX_BAD_RUN):
+        ok, frame = capture.read()
+        if ok and frame is not None:
+            return frame
+    return None
+
+
+def _grab_good(capture: cv2.VideoCapture) -> bool:
+    """Whether another frame decodes, skipping at most MAX_BAD_RUN that do not."""
+    return any(capture.grab() for _ in range(MAX_BAD_RUN))
 
 
 def open_input(path: Path, fps: float | None = None, max_pixels: int | None = None) -> VideoInput:
@@ -142,11 +202,11 @@ def open_input(path: Path, fps: float | None = None, max_pixels: int | None = No
         )
         if all(math.isfinite(v) and v > 0 for v in header_size):
             check_frame_size(int(header_size[0]), int(header_size[1]), max_pixels)
-        ok, first = capture.read()
-        if not ok or first is None:
+        first = _read_good(capture)
+        if first is None:
             raise InputError(f"video has no decodable frames: {path}")
         check_frame_size(first.shape[1], first.shape[0], max_pixels)
-        if not capture.grab():
+        if not _grab_good(capture):
             raise InputError(SINGLE_PICTURE.format(path=path))
         rate = fps if fps and 0 < fps <= MAX_FPS else frame_rate(capture)
         claimed = capture.get(cv2.CAP_PROP_FRAME_COUNT)
@@ -182,9 +242,12 @@ def _open_folder(folder: Path, fps: float | None, max_pixels: int | None) -> Vid
         raise InputError(f"no image frames in folder: {folder}")
     if len(images) < MIN_FRAMES:
         raise InputError(f"{folder} holds only one image: motion needs at least two frames")
-    first = cv2.imread(str(images[0]), cv2.IMREAD_COLOR)
+    # The first picture that decodes sets the size; one that does not is a skipped frame.
+    first = next(
+        (f for f in (cv2.imread(str(p), cv2.IMREAD_COLOR) for p in images) if f is not None), None
+    )
     if first is None:
-        raise InputError(f"cannot decode image {images[0].name} in {folder}")
+        raise InputError(f"none of the {len(images)} images in {folder} decodes")
     check_frame_size(first.shape[1], first.shape[0], max_pixels)
     return VideoInput(
         folder, float(fps or DEFAULT_FPS), (first.shape[1], first.shape[0]), images=images

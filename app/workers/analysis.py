@@ -140,6 +140,7 @@ class AnalysisManager:
         drain = threading.Thread(target=_tail, args=(child.stderr, stderr_tail), daemon=True)
         drain.start()
         error: str | None = None
+        warnings: list[str] = []
         done = False
         timed_out = threading.Event()
 
@@ -172,6 +173,9 @@ class AnalysisManager:
                     )
                 elif "error" in message:
                     error = _one_line(str(message["error"])) or "the analysis failed"
+                elif "warning" in message:
+                    warnings.append(_one_line(str(message["warning"])))
+                    log.warning("analysis %s: %s", analysis_id, warnings[-1])
                 elif message.get("done"):
                     done = True
             code = child.wait()
@@ -183,7 +187,8 @@ class AnalysisManager:
         if done and code == 0:
             self.progress[analysis_id] = 1.0
             self.bus.publish({"type": "progress", "analysis_id": analysis_id, "progress": 1.0})
-            self._finish(analysis_id, "done", None)
+            # The warnings are also the report's (GET /api/analyses/{id}: report.warnings).
+            self._finish(analysis_id, "done", None, warnings)
             return
         if error is None:
             if self._stopping.is_set():
@@ -206,7 +211,9 @@ class AnalysisManager:
             json.dumps(options),
         ]
 
-    def _finish(self, analysis_id: str, status: str, error: str | None) -> None:
+    def _finish(
+        self, analysis_id: str, status: str, error: str | None, warnings: list[str] | None = None
+    ) -> None:
         # A failed analysis keeps how far it got; the row first, so that no reader sees
         # the analysis running at the progress stored when it started.
         reached = self.progress.get(analysis_id, 0.0)
@@ -214,9 +221,15 @@ class AnalysisManager:
             analysis_id, status=status, error=error, finished_at=time.time(), progress=reached
         )
         self.progress.pop(analysis_id, None)
-        self.bus.publish(
-            {"type": "status", "analysis_id": analysis_id, "status": status, "error": error}
-        )
+        message: dict[str, Any] = {
+            "type": "status",
+            "analysis_id": analysis_id,
+            "status": status,
+            "error": error,
+        }
+        if warnings:
+            message["warnings"] = warnings
+        self.bus.publish(message)
 
 
 def exit_reason(code: int, last_stderr: str = "") -> str:

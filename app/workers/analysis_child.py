@@ -2,7 +2,9 @@
 
 A decoder that crashes on a malformed file takes only this process down. It
 talks to the server on stdout, one JSON object a line: ``{"progress": 0.42}``
-as frames are done, then ``{"done": true}`` or ``{"error": "one line"}``. While
+as frames are done, ``{"warning": "one line"}`` for each way the upload was not read
+whole (frames that did not decode and were skipped, a file that ended early; also in
+report.json's ``warnings``), then ``{"done": true}`` or ``{"error": "one line"}``. While
 it runs it keeps ``live.jpg`` in the output folder, the latest annotated frame,
 for the analysis' MJPEG stream.
 
@@ -118,7 +120,9 @@ def main(argv: list[str] | None = None) -> int:
         analysis = runner.AnalysisOptions(
             pipeline=config, max_pixels=options.get("max_pixels"), input_name=name
         )
-        runner.analyze(input_path, out_dir, analysis, progress, keep_live_frame)
+        report = runner.analyze(input_path, out_dir, analysis, progress, keep_live_frame)
+        for warning in report.get("warnings", []):
+            _say({"warning": public(str(warning))})
     except Exception as exc:
         if _out_of_memory(exc):
             limit = options.get("memory_mb")

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import asyncio
+import json
 import sys
 from pathlib import Path
 from typing import Any
@@ -11,6 +12,7 @@ from app.storage import Database
 from app.workers.analysis import AnalysisManager
 from app.workers.bus import EventBus
 from tests.api.vigil_livekit import wait_for, write_video
+from tests.sources.damaged_video import garble_frames
 
 
 class CrashingManager(AnalysisManager):
@@ -61,6 +63,23 @@ def test_analysis_in_child_process(tmp_path: Path) -> None:
     out = tmp_path / "analyses" / "a1" / "out"
     assert (out / "tracks.csv").is_file() and (out / "annotated.avi").is_file()
     assert (out / "live.jpg").is_file()
+
+
+def test_an_upload_with_a_damaged_frame_is_analysed_and_the_warning_reaches_its_status(
+    tmp_path: Path,
+) -> None:
+    db = Database(tmp_path / "v.db")
+    manager = AnalysisManager(db, EventBus(), tmp_path / "analyses")
+    damaged = garble_frames(write_video(tmp_path / "v.avi", 60), [12], tmp_path / "damaged.avi")
+    messages = _run(manager, db, tmp_path / "analyses", damaged)
+    final = messages[-1]
+    assert final["status"] == "done" and final["error"] is None
+    (warning,) = final["warnings"]
+    assert warning.startswith("1 frame did not decode and was skipped: frame 12")
+    report = json.loads((tmp_path / "analyses" / "a1" / "out" / "report.json").read_text())
+    assert report["warnings"] == [warning]  # What GET /api/analyses/{id} shows as its report.
+    assert report["frames"] == 59 and report["skipped_frames"] == [12]
+    assert report["frames_read"] == report["header_frames"] == 60
 
 
 def test_crashing_child_fails_with_reason(tmp_path: Path) -> None:

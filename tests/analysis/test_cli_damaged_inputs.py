@@ -1,0 +1,103 @@
+"""`vigil analyze` on damaged files, as a user runs it."""
+
+from __future__ import annotations
+
+import csv
+import json
+from pathlib import Path
+
+import cv2
+import pytest
+
+from tests.analysis.test_cli_analyze import WALKER, vigil
+from tests.conftest import decode_all, write_scene_video
+from tests.sources.damaged_video import cut_after, garble_frames
+
+
+@pytest.fixture(scope="module")
+def walker_video(tmp_path_factory) -> Path:
+    return write_scene_video(WALKER, tmp_path_factory.mktemp("video") / "walker.avi")
+
+
+def _report(out: Path) -> dict:
+    return json.loads((out / "report.json").read_text())
+
+
+def _rows(out: Path) -> list[dict[str, str]]:
+    with (out / "tracks.csv").open() as handle:
+        return list(csv.DictReader(handle))
+
+
+@pytest.mark.parametrize("quiet", [True, False], ids=["quiet", "summary"])
+def test_a_frame_that_does_not_decode_is_skipped_and_the_analysis_carries_on(
+    tmp_path, walker_video, quiet
+):
+    damaged = garble_frames(walker_video, [20], tmp_path / "damaged.avi")
+    out = tmp_path / "out"
+    result = vigil("analyze", damaged, "--out", out, *(["--quiet"] if quiet else []))
+    assert result.returncode == 0, result.stderr
+    (line,) = result.stderr.splitlines()  # Said once, --quiet or not.
+    assert line.startswith("vigil analyze: warning: 1 frame did not decode")
+    assert "frame 20" in line
+    report = _report(out)
+    assert report["frames"] == WALKER.frames - 1 and report["frames_read"] == WALKER.frames
+    assert report["skipped_frames"] == [20] and report["header_frames"] == WALKER.frames
+    assert report["ended_early"] is False and report["warnings"] == [line.split("warning: ")[1]]
+    assert report["duration_s"] == pytest.approx(WALKER.frames / WALKER.fps)
+    assert 20 not in [s["frame"] for s in report["frame_stats"]]
+    assert "Warning: 1 frame did not decode" in (out / "report.html").read_text()
+    # The walker is tracked to the end (frame 50), each row at its decode index and time.
+    rows = _rows(out)
+    frames = {int(r["frame"]) for r in rows}
+    assert 20 not in frames and max(frames) >= 45
+    for row in rows:
+        assert float(row["time_s"]) == pytest.approx(int(row["frame"]) / WALKER.fps, abs=1e-3)
+        (box,) = WALKER.truth(int(row["frame"]))
+        assert abs(int(row["x"]) - box.box.x) <= 4
+    (track,) = report["tracks"]
+    assert track["mean_speed_px_s"] == pytest.approx(60.0, rel=0.05)
+    # annotated.avi stays frame for frame with the input: the skipped one repeats frame 19.
+    annotated = list(decode_all(out / "annotated.avi"))
+    assert len(annotated) == WALKER.frames
+    assert cv2.absdiff(annotated[20], annotated[19]).max() == 0
+    assert cv2.absdiff(annotated[21], annotated[19]).max() > 0
+
+
+def test_many_damaged_frames_are_each_counted(tmp_path, walker_video):
+    bad = [0, 10, 11, 12, 30, 74]
+    out = tmp_path / "out"
+    result = vigil("analyze", garble_frames(walker_video, bad, tmp_path / "d.avi"), "--out", out)
+    assert result.returncode == 0, result.stderr
+    (line,) = result.stderr.splitlines()
+    assert "5 frames did not decode" in line and "frames 0, 10, 11, 12, 30" in line
+    report = _report(out)
+    # The last frame is the file's end as far as the reader can tell: not a skipped one.
+    assert report["skipped_frames"] == bad[:-1] and report["frames_read"] == WALKER.frames - 1
+    assert report["frames"] == WALKER.frames - len(bad)
+    assert len(list(decode_all(out / "annotated.avi"))) == WALKER.frames - 1
+
+
+def test_truncated_video_is_analysed_up_to_where_it_breaks_and_says_so(tmp_path, walker_video):
+    cut = cut_after(walker_video, 37, tmp_path / "cut.avi")  # the header still claims 75
+    out = tmp_path / "out"
+    result = vigil("analyze", cut, "--out", out, "--quiet")
+    assert result.returncode == 0, result.stderr
+    # FFmpeg's complaints about the cut stay out; Vigil's own line says what happened.
+    (line,) = result.stderr.splitlines()
+    report = _report(out)
+    decoded = report["frames"]
+    assert decoded in (37, 38)  # The half JPEG at the cut may decode.
+    assert line == (
+        f"vigil analyze: warning: the video ended early: {decoded} frames decoded of the "
+        f"{WALKER.frames} its header claims (cut short, or damaged from frame {decoded} on)"
+    )
+    assert report["ended_early"] is True and report["header_frames"] == WALKER.frames
+    assert report["frames_read"] == decoded and report["skipped_frames"] == []
+
+
+def test_a_whole_video_has_no_warnings(tmp_path, walker_video):
+    result = vigil("analyze", walker_video, "--out", tmp_path / "out", "--quiet")
+    assert result.returncode == 0 and result.stderr == ""
+    report = _report(tmp_path / "out")
+    assert report["warnings"] == [] and report["skipped_frames"] == []
+    assert report["ended_early"] is False and report["frames_read"] == WALKER.frames

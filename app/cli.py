@@ -6,6 +6,7 @@ import argparse
 import errno
 import ipaddress
 import json
+import math
 import os
 import sys
 from collections.abc import Sequence
@@ -36,14 +37,48 @@ def _sensitivity(value: str) -> float | None:
     return number
 
 
-def _non_negative(value: str) -> float:
+def _number(value: str) -> float:
     try:
         number = float(value)
     except ValueError:
         raise argparse.ArgumentTypeError(f"not a number: {value!r}") from None
-    if number < 0:
-        raise argparse.ArgumentTypeError("must be 0 or more")
+    if not math.isfinite(number):
+        raise argparse.ArgumentTypeError(f"not a finite number: {value!r}")
     return number
+
+
+def _non_negative(value: str) -> float:
+    number = _number(value)
+    if number < 0:
+        raise argparse.ArgumentTypeError(f"must be 0 or more, not {value}")
+    return number
+
+
+def _fps(value: str) -> float:
+    from app.sources.files import MAX_FPS
+
+    number = _number(value)
+    if not 0 < number <= MAX_FPS:
+        raise argparse.ArgumentTypeError(
+            f"must be a positive number of frames per second, at most {MAX_FPS:g}, not {value}"
+        )
+    return number
+
+
+MIN_DETECT_WIDTH = 32
+"""Narrower than this, the detector's morphology and min area leave nothing to detect."""
+
+
+def _detect_width(value: str) -> int:
+    try:
+        width = int(value)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"not a whole number of pixels: {value!r}") from None
+    if width != 0 and width < MIN_DETECT_WIDTH:
+        raise argparse.ArgumentTypeError(
+            f"must be 0 (full size) or at least {MIN_DETECT_WIDTH} pixels, not {value}"
+        )
+    return width
 
 
 def _port(value: str) -> int:
@@ -115,7 +150,10 @@ def build_parser() -> argparse.ArgumentParser:
         help="camera calibration JSON (docs/calibration.md): adds metres and km/h",
     )
     analyze.add_argument(
-        "--fps", type=float, default=None, help="frame rate of a folder of frames (default 25)"
+        "--fps",
+        type=_fps,
+        default=None,
+        help="frame rate of a folder of frames (default 25), or instead of a video's own",
     )
     analyze.add_argument("--denoise", choices=DENOISE_METHODS, default="gaussian")
     analyze.add_argument("--denoise-kernel", type=int, choices=(1, 3, 5, 7), default=3)
@@ -127,9 +165,11 @@ def build_parser() -> argparse.ArgumentParser:
     )
     analyze.add_argument(
         "--detect-width",
-        type=int,
+        type=_detect_width,
         default=320,
-        help="detect on frames at most this wide, 0 = full size (default 320)",
+        metavar="PX",
+        help=f"detect on frames at most this wide, 0 = full size, else at least "
+        f"{MIN_DETECT_WIDTH} (default 320)",
     )
     analyze.add_argument("--quiet", action="store_true", help="no progress bar and no summary")
 

@@ -160,6 +160,12 @@ class VideoInput:
             capture.release()
 
 
+def check_fps(fps: float | None) -> None:
+    """Refuse a frame rate that is not a number in (0, MAX_FPS]."""
+    if fps is not None and not (math.isfinite(fps) and 0 < fps <= MAX_FPS):
+        raise InputError(f"the frame rate must be more than 0 and at most {MAX_FPS:g}, not {fps}")
+
+
 def _read_good(capture: cv2.VideoCapture) -> Image | None:
     """The next frame that decodes, skipping at most MAX_BAD_RUN that do not."""
     for _ in range(MAX_BAD_RUN):
@@ -180,6 +186,7 @@ def open_input(path: Path, fps: float | None = None, max_pixels: int | None = No
     ``max_pixels`` caps width x height, checked against the header before a frame
     is decoded and again against the first decoded frame.
     """
+    check_fps(fps)
     if not path.exists():
         raise InputError(f"input not found: {path}")
     if path.is_dir():
@@ -208,7 +215,7 @@ def open_input(path: Path, fps: float | None = None, max_pixels: int | None = No
         check_frame_size(first.shape[1], first.shape[0], max_pixels)
         if not _grab_good(capture):
             raise InputError(SINGLE_PICTURE.format(path=path))
-        rate = fps if fps and 0 < fps <= MAX_FPS else frame_rate(capture)
+        rate = fps or frame_rate(capture)
         claimed = capture.get(cv2.CAP_PROP_FRAME_COUNT)
     finally:
         capture.release()

@@ -1,4 +1,4 @@
-"""`vigil analyze` on damaged files, as a user runs it."""
+"""`vigil analyze` on damaged files and bad option values, as a user runs it."""
 
 from __future__ import annotations
 
@@ -9,6 +9,7 @@ from pathlib import Path
 import cv2
 import pytest
 
+from app import cli
 from tests.analysis.test_cli_analyze import WALKER, vigil
 from tests.conftest import decode_all, write_scene_video
 from tests.sources.damaged_video import cut_after, garble_frames
@@ -101,3 +102,58 @@ def test_a_whole_video_has_no_warnings(tmp_path, walker_video):
     report = _report(tmp_path / "out")
     assert report["warnings"] == [] and report["skipped_frames"] == []
     assert report["ended_early"] is False and report["frames_read"] == WALKER.frames
+
+
+@pytest.mark.parametrize(
+    ("option", "value", "reason"),
+    [
+        ("--fps", "-3", "--fps: must be a positive number"),
+        ("--fps", "0", "--fps: must be a positive number"),
+        ("--fps", "nan", "--fps: not a finite number"),
+        ("--fps", "inf", "--fps: not a finite number"),
+        ("--fps", "5000", "at most 1000"),
+        ("--fps", "fast", "--fps: not a number"),
+        ("--detect-width", "7", "--detect-width: must be 0 (full size) or at least 32"),
+        ("--detect-width", "-320", "--detect-width: must be 0"),
+        ("--detect-width", "1.5", "--detect-width: not a whole number"),
+        ("--min-area", "-5", "--min-area: must be 0 or more"),
+        ("--min-area", "nan", "--min-area: not a finite number"),
+        ("--min-area", "inf", "--min-area: not a finite number"),
+        ("--sensitivity", "nan", "--sensitivity: sensitivity is a grey-level threshold"),
+        ("--sensitivity", "0", "--sensitivity: sensitivity is a grey-level threshold"),
+        ("--denoise-kernel", "4", "--denoise-kernel: invalid choice"),
+    ],
+)
+def test_a_bad_option_value_exits_2_with_one_line_before_anything_runs(
+    tmp_path, capsys, option, value, reason
+):
+    out = tmp_path / "out"
+    with pytest.raises(SystemExit) as exited:
+        cli.main(["analyze", str(tmp_path), "--out", str(out), option, value])
+    assert exited.value.code == 2
+    captured = capsys.readouterr()
+    (line,) = captured.err.splitlines()
+    assert reason in line and line.startswith("vigil analyze: error: argument ")
+    assert not out.exists()
+
+
+def test_a_negative_frame_rate_for_a_folder_is_refused_in_one_line(tmp_path):
+    folder = tmp_path / "frames"
+    folder.mkdir()
+    for i in range(5):
+        cv2.imwrite(str(folder / f"f{i:04d}.png"), WALKER.frame(i))
+    result = vigil("analyze", folder, "--fps", "-3", "--out", tmp_path / "out")
+    assert result.returncode == 2
+    assert result.stderr.splitlines() == [
+        "vigil analyze: error: argument --fps: must be a positive number of frames per second, "
+        "at most 1000, not -3"
+    ]
+    assert not (tmp_path / "out").exists()
+
+
+@pytest.mark.parametrize("width", ["0", "32"])
+def test_the_smallest_detection_widths_are_accepted(tmp_path, walker_video, width):
+    out = tmp_path / "out"
+    result = vigil("analyze", walker_video, "--out", out, "--detect-width", width, "--quiet")
+    assert result.returncode == 0, result.stderr
+    assert _report(out)["settings"]["detect_width"] == int(width)

@@ -91,3 +91,11 @@ def test_a_folder_of_images_none_of_which_decodes_is_refused(tmp_path):
         (folder / f"{i}.jpg").write_bytes(b"garbage")
     with pytest.raises(InputError, match="none of the 3 images"):
         open_input(folder)
+
+
+@pytest.mark.parametrize("fps", [0.0, -3.0, float("nan"), float("inf"), 5000.0])
+def test_a_frame_rate_out_of_range_is_refused(tmp_path, video, fps):
+    with pytest.raises(InputError, match="frame rate"):
+        open_input(video, fps)
+    with pytest.raises(InputError, match="frame rate"):
+        open_input(tmp_path, fps)

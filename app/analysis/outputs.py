@@ -64,12 +64,16 @@ class AnnotatedVideo:
     """annotated.avi, Motion-JPEG: every OpenCV build writes it and every player reads it.
 
     Frame for frame with the input: frame N of the video is decode index N, and a frame
-    of the input that did not decode is the previous annotated frame again.
+    of the input that did not decode is the previous annotated frame again. Its frames
+    are the input's size: FFmpeg's MJPEG encoder (4:2:0) would drop the last column and
+    row of an odd-sized frame, so those are written by OpenCV's own MJPEG writer.
     """
 
     def __init__(self, path: Path, fps: float, size: tuple[int, int]) -> None:
         fourcc = cv2.VideoWriter.fourcc(*"MJPG")
-        self._writer = cv2.VideoWriter(str(path), fourcc, fps, size)
+        odd = size[0] % 2 or size[1] % 2
+        backend = cv2.CAP_OPENCV_MJPEG if odd else cv2.CAP_FFMPEG
+        self._writer = cv2.VideoWriter(str(path), backend, fourcc, fps, size)
         if not self._writer.isOpened():
             raise OSError(f"cannot write video {path}")
         self._written = 0

@@ -1,4 +1,4 @@
-"""`vigil analyze` on damaged files and bad option values, as a user runs it."""
+"""`vigil analyze` on damaged files, odd frame sizes and bad option values, as a user runs it."""
 
 from __future__ import annotations
 
@@ -7,9 +7,11 @@ import json
 from pathlib import Path
 
 import cv2
+import numpy as np
 import pytest
 
 from app import cli
+from app.sources.synthetic import MovingObject, Scene
 from tests.analysis.test_cli_analyze import WALKER, vigil
 from tests.conftest import decode_all, write_scene_video
 from tests.sources.damaged_video import cut_after, garble_frames
@@ -102,6 +104,38 @@ def test_a_whole_video_has_no_warnings(tmp_path, walker_video):
     report = _report(tmp_path / "out")
     assert report["warnings"] == [] and report["skipped_frames"] == []
     assert report["ended_early"] is False and report["frames_read"] == WALKER.frames
+
+
+ODD = Scene(
+    name="odd",
+    size=(251, 191),
+    fps=15.0,
+    frames=30,
+    objects=(MovingObject((20, 80), (75.0, 0.0), (30, 40), 220, first_frame=2),),
+)
+
+
+def test_an_odd_frame_size_is_kept_in_the_annotated_video(tmp_path):
+    folder = tmp_path / "frames"
+    folder.mkdir()
+    for i in range(ODD.frames):
+        cv2.imwrite(str(folder / f"{i:03d}.png"), ODD.frame(i))
+    out = tmp_path / "out"
+    result = vigil("analyze", folder, "--out", out, "--fps", "15", "--quiet")
+    assert result.returncode == 0, result.stderr
+    annotated = list(decode_all(out / "annotated.avi"))
+    assert len(annotated) == ODD.frames
+    assert {f.shape for f in annotated} == {(191, 251, 3)}
+    assert cv2.imread(str(out / "snapshots" / "event-0001.jpg")).shape == (191, 251, 3)
+    # Pixel for pixel the input's frame (up to JPEG), not a shifted or scaled copy: the
+    # last column and row are there.
+    for index in (0, 15):
+        drawn = annotated[index].astype(int)
+        source = ODD.frame(index).astype(int)
+        unmarked = (np.abs(drawn - source).max(axis=2) < 40).mean()
+        assert unmarked > 0.9, index
+        assert np.abs(drawn[:, -1] - source[:, -1]).mean() < 8
+        assert np.abs(drawn[-1] - source[-1]).mean() < 8
 
 
 @pytest.mark.parametrize(

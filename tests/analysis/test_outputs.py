@@ -1,4 +1,4 @@
-"""annotated.avi as written and decoded back: frame for frame with the input."""
+"""annotated.avi as written and decoded back: the input's size, frame for frame."""
 
 from __future__ import annotations
 
@@ -6,6 +6,7 @@ from pathlib import Path
 
 import cv2
 import numpy as np
+import pytest
 
 from app.analysis.outputs import AnnotatedVideo
 from tests.conftest import decode_all
@@ -15,6 +16,20 @@ def _picture(size: tuple[int, int], seed: int) -> np.ndarray:
     rng = np.random.default_rng(seed)
     noise = rng.integers(0, 255, (size[1], size[0], 3), dtype=np.uint8)
     return cv2.GaussianBlur(noise, (0, 0), 2)
+
+
+@pytest.mark.parametrize("size", [(251, 191), (320, 241), (33, 17), (320, 240)])
+def test_the_annotated_video_keeps_the_input_size(tmp_path: Path, size: tuple[int, int]) -> None:
+    frames = [_picture(size, seed) for seed in range(3)]
+    video = AnnotatedVideo(tmp_path / "annotated.avi", 15.0, size)
+    for frame in frames:
+        video.write(frame)
+    video.close()
+    decoded = list(decode_all(tmp_path / "annotated.avi"))
+    assert len(decoded) == 3
+    for written, back in zip(frames, decoded, strict=True):
+        assert back.shape == written.shape
+        assert cv2.PSNR(written, back) > 30
 
 
 def test_missing_decode_indices_repeat_the_previous_frame(tmp_path: Path) -> None:

@@ -265,7 +265,7 @@ class AccessControl:
     /ws is closed with 1008 before it is accepted.
     """
 
-    OPEN = frozenset({"/api/health", "/login", "/api/login", "/api/logout"})
+    OPEN = frozenset({"/api/health", "/login", "/api/login", "/api/logout", "/favicon.ico"})
 
     def __init__(self, app: ASGIApp, access: Access) -> None:
         self.app = app

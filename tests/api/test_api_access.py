@@ -95,6 +95,8 @@ def test_without_a_session_pages_redirect_and_the_rest_is_refused(
     login_page = httpx.get(f"{base}/login?next=/")
     assert login_page.status_code == 200 and 'type="password"' in login_page.text
     assert httpx.get(f"{base}/static/app.css").status_code == 200
+    icon = httpx.get(f"{base}/favicon.ico")  # No 404 in the console of a page that names none.
+    assert icon.status_code == 200 and icon.headers["content-type"] == "image/svg+xml"
 
     # The refused write did nothing: only the demo camera is there once logged in.
     with logged_in(server) as client:

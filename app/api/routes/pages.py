@@ -5,7 +5,7 @@ from __future__ import annotations
 from pathlib import Path
 
 from fastapi import APIRouter, Request
-from fastapi.responses import HTMLResponse
+from fastapi.responses import FileResponse, HTMLResponse
 from fastapi.templating import Jinja2Templates
 
 import app as vigil_package
@@ -13,9 +13,9 @@ from app.api.services import services
 from app.vision.motion import DEFAULT_METHOD, METHODS
 
 router = APIRouter()
-TEMPLATES = Jinja2Templates(
-    directory=str(Path(vigil_package.__file__).resolve().parent / "templates")
-)
+PACKAGE_DIR = Path(vigil_package.__file__).resolve().parent
+TEMPLATES = Jinja2Templates(directory=str(PACKAGE_DIR / "templates"))
+FAVICON = PACKAGE_DIR / "static" / "favicon.svg"
 
 
 @router.get("/", response_class=HTMLResponse, include_in_schema=False)
@@ -30,4 +30,12 @@ def dashboard(request: Request) -> HTMLResponse:
             "default_method": DEFAULT_METHOD,
             "max_upload_mb": svc.settings.max_upload_mb,
         },
+    )
+
+
+@router.get("/favicon.ico", include_in_schema=False)
+def favicon() -> FileResponse:
+    """The icon for pages that name none (a JSON answer, the API docs): the SVG one."""
+    return FileResponse(
+        FAVICON, media_type="image/svg+xml", headers={"Cache-Control": "max-age=86400"}
     )

@@ -4,13 +4,21 @@
 const $ = (selector, root = document) => root.querySelector(selector);
 const $$ = (selector, root = document) => Array.from(root.querySelectorAll(selector));
 
-/* Browsers keep about six HTTP/1.1 connections per host. Up to STREAM_LIMIT cameras
-   get an MJPEG stream each; with more, every picture is polled as single frames.
-   Histograms are always polled, so API calls keep a free connection. */
-const STREAM_LIMIT = 4;
-const POLL_MS = 250;
+/* Browsers keep about six HTTP/1.1 connections per host. An MJPEG stream holds one for
+   as long as it is shown, so at most STREAM_BUDGET pictures are streams (the first cards,
+   less the analyses being watched live) and two connections stay free for API calls,
+   histograms and the pictures of the other cameras, which are polled as single frames:
+   the next as soon as the last has loaded (the server answers when the camera has a new
+   one), at most MAX_POLL_FPS a second. */
+const STREAM_BUDGET = 4;
+const MAX_POLL_FPS = 30;
 const HISTOGRAM_MS = 1000;
 const MOTION_WINDOW_S = 60;
+const SENDING = ["connecting", "live"];  // Camera states in which pictures come.
+const STALL_MS = 10000;  // A stream of a live camera whose picture stays the same this long is reopened.
+const TOAST_MAX = 3;     // Toasts shown at once; the rest wait behind "+N more".
+const ALARM_LIST_MAX = 100;
+const HISTORY_EVENTS = 50;  // Events listed on page load, from GET /api/events.
 
 const state = {
   cameras: new Map(),      // id -> camera (from the API, updated by /ws status)
@@ -18,7 +26,11 @@ const state = {
   motion: new Map(),       // id -> [{t, v}]
   alarmsAt: new Map(),     // id -> [t]
   muted: localStorage.getItem("vigil.muted") === "1",
-  streaming: null,         // whether pictures are MJPEG streams (vs polled frames)
+  ws: "connecting",        // the /ws connection: connecting, up, down (server unreachable)
+  wsEverUp: false,
+  camerasLoaded: false,
+  knownCameraIds: new Set(),  // cameras that have events or snapshots, deleted ones too
+  alarmItems: new Map(),   // event key -> alarm list entry
   analyses: new Map(),     // id -> element
 };
 
@@ -62,13 +74,42 @@ function fmtDate(ts) {
 
 /* ---------- Sound and toasts ---------- */
 
+/* Browsers let a page play sound only once the user has clicked or typed on it (the
+   autoplay policy). Until then the sound button says "click to enable sound"; the first
+   click or key press anywhere on the page unlocks it. */
 let audio = null;
-document.addEventListener("click", () => {
-  if (!audio && window.AudioContext) audio = new AudioContext();
-}, { once: false });
+
+function audioReady() {
+  return Boolean(audio && audio.state === "running");
+}
+
+function unlockAudio(event) {
+  if (!window.AudioContext || audioReady()) return;
+  const button = $("#mute");
+  // A click on the button that asks to enable sound enables it, and does not mute.
+  if (event && button.contains(event.target) && !state.muted) button.dataset.unlocking = "1";
+  if (!audio) {
+    audio = new AudioContext();
+    audio.addEventListener("statechange", renderMute);
+  }
+  audio.resume().then(renderMute, () => {});
+  renderMute();
+}
+
+for (const type of ["pointerdown", "keydown", "touchend"]) {
+  document.addEventListener(type, unlockAudio, { capture: true });
+}
 
 function beep() {
-  if (state.muted || !audio) return;
+  if (state.muted) return;
+  if (!audioReady()) {
+    // No sound yet: draw the eye to the button that enables it.
+    const button = $("#mute");
+    button.classList.remove("nudge");
+    void button.offsetWidth;
+    button.classList.add("nudge");
+    return;
+  }
   const now = audio.currentTime;
   for (const [offset, freq] of [[0, 880], [0.18, 660]]) {
     const osc = audio.createOscillator();
@@ -85,24 +126,69 @@ function beep() {
 
 function renderMute() {
   const button = $("#mute");
-  button.textContent = state.muted ? "🔕 Sound off" : "🔔 Sound on";
+  const locked = !state.muted && Boolean(window.AudioContext) && !audioReady();
+  $(".label", button).textContent = state.muted ? "Sound off" : locked ? "Click to enable sound" : "Sound on";
+  button.classList.toggle("locked", locked);
   button.setAttribute("aria-pressed", String(state.muted));
+  button.title = locked ? "the browser plays sound only after a click or a key press on the page"
+    : state.muted ? "alarm sound is off: click to turn it on" : "alarm sound is on: click to mute";
 }
 
-$("#mute").addEventListener("click", () => {
+$("#mute").addEventListener("click", (event) => {
+  const button = event.currentTarget;
+  if (button.dataset.unlocking) {
+    delete button.dataset.unlocking;
+    return;
+  }
   state.muted = !state.muted;
   localStorage.setItem("vigil.muted", state.muted ? "1" : "0");
   renderMute();
 });
 
-function toast(html, kind = "alarm") {
-  const el = document.createElement("div");
-  el.className = `toast toast-${kind}`;
-  el.innerHTML = html;
-  el.addEventListener("click", () => el.remove());
-  $("#toasts").prepend(el);
-  setTimeout(() => el.remove(), 8000);
+/* Toasts: at most TOAST_MAX shown, newest first; the rest wait behind "+N more" (with
+   "dismiss all"). A toast with a key (an alarm: its camera and event) is updated in
+   place by the next one with the same key rather than stacked again. */
+function toast(html, kind = "alarm", key = null) {
+  const box = $("#toasts");
+  key = key || `${kind}:${html}`;
+  let el = $$(".toast", box).find((t) => t.dataset.key === key);
+  if (el) {
+    clearTimeout(el._timer);
+    el._repeats = (el._repeats || 1) + 1;
+  } else {
+    el = document.createElement("div");
+    el.className = `toast toast-${kind}`;
+    el.dataset.key = key;
+    el.setAttribute("role", kind === "error" ? "alert" : "status");
+    el.addEventListener("click", () => removeToast(el));
+    el._repeats = 1;
+  }
+  el.innerHTML = html + (el._repeats > 1 && kind !== "alarm" ? ` <span class="repeats">×${el._repeats}</span>` : "");
+  box.prepend(el);
+  el._timer = setTimeout(() => removeToast(el), kind === "error" ? 12000 : 8000);
+  layoutToasts();
+  return el;
 }
+
+function removeToast(el) {
+  clearTimeout(el._timer);
+  el.remove();
+  layoutToasts();
+}
+
+function layoutToasts() {
+  const toasts = $$("#toasts > .toast");
+  toasts.forEach((el, i) => { el.hidden = i >= TOAST_MAX; });
+  const more = $("#toasts-more");
+  const hidden = toasts.length - TOAST_MAX;
+  more.hidden = hidden <= 0;
+  $(".count", more).textContent = hidden > 0 ? `+${hidden} more` : "";
+  $("#toasts").append(more);
+}
+
+$("#toasts-dismiss").addEventListener("click", () => {
+  for (const el of $$("#toasts > .toast")) removeToast(el);
+});
 
 function escapeHtml(text) {
   return String(text).replace(/[&<>"']/g, (c) => ({
@@ -113,12 +199,14 @@ function escapeHtml(text) {
 
 function cameraName(id) {
   const camera = state.cameras.get(id);
-  return camera ? camera.name : `camera ${id}`;
+  if (camera) return camera.name;
+  return state.camerasLoaded ? `camera ${id} (deleted)` : `camera ${id}`;
 }
 
 async function loadCameras() {
   try {
     const cameras = await api("GET", "/api/cameras");
+    state.camerasLoaded = true;
     const seen = new Set();
     for (const camera of cameras) {
       seen.add(camera.id);
@@ -143,21 +231,27 @@ async function loadCameras() {
 }
 
 function renderCameras() {
-  const streaming = state.cameras.size <= STREAM_LIMIT;
-  const modeChanged = streaming !== state.streaming;
-  state.streaming = streaming;
   for (const camera of state.cameras.values()) {
-    let card = state.cards.get(camera.id);
-    if (!card) {
-      card = makeCard(camera.id);
+    if (!state.cards.has(camera.id)) {
+      const card = makeCard(camera.id);
       state.cards.set(camera.id, card);
       $("#grid").append(card);
-    } else if (modeChanged && card._started) {
-      stopPictures(card);
-      startPictures(card, camera.id);
     }
-    updateCard(card, camera);
   }
+  assignPictureModes();
+  for (const camera of state.cameras.values()) updateCard(state.cards.get(camera.id), camera);
+}
+
+/* Which pictures are streams: the first cards, as many as the connection budget allows. */
+function assignPictureModes() {
+  const slots = Math.max(0, STREAM_BUDGET - $$("#analyses .live-view img.streaming").length);
+  $$("#grid > .card").forEach((card, i) => {
+    const mode = i < slots ? "stream" : "poll";
+    if (card._mode === mode) return;
+    card._mode = mode;
+    card.classList.toggle("polled", mode === "poll");
+    if (card._started) restartPictures(card);
+  });
 }
 
 function makeCard(id) {
@@ -315,10 +409,21 @@ function updateCard(card, camera) {
   $(".cam-name", card).textContent = camera.name;
   $(".cam-name", card).title = camera.source;
   const badge = $(".state", card);
-  badge.textContent = camera.state || "?";
-  badge.className = `badge state badge-${camera.state}`;
-  $(".fps", card).textContent = camera.state === "live" ? `${(camera.fps || 0).toFixed(1)} fps` : "";
-  $(".reason", card).textContent = camera.reason || "";
+  const unreachable = state.ws === "down";
+  // While /ws is down nothing is known of the camera: its last state would be a guess.
+  card.classList.toggle("stale", unreachable);
+  card.classList.toggle("down", !SENDING.includes(camera.state));
+  $(".picture", card).dataset.note = unreachable ? "server unreachable" : `camera ${camera.state || "?"}`;
+  if (unreachable) {
+    badge.textContent = "server unreachable";
+    badge.className = "badge state badge-stale";
+    $(".fps", card).textContent = "";
+  } else {
+    badge.textContent = camera.state || "?";
+    badge.className = `badge state badge-${camera.state}`;
+    $(".fps", card).textContent = camera.state === "live" ? fpsText(card, camera) : "";
+  }
+  $(".reason", card).textContent = unreachable ? "" : camera.reason || "";
   if (card._zones && "mask" in camera) card._zones.show(camera.mask);
   const toggle = $(".toggle", card);
   toggle.textContent = camera.active ? "Stop" : "Activate";
@@ -342,43 +447,130 @@ function updateCard(card, camera) {
   card.classList.toggle("no-picture", !card._started);
 }
 
+function fpsText(card, camera) {
+  const fps = `${(camera.fps || 0).toFixed(1)} fps`;
+  if (card._mode !== "poll") return fps;
+  const now = performance.now();
+  const shown = (card._shown || []).filter((t) => t > now - 5000);
+  card._shown = shown;
+  return `${fps} · ${(shown.length / 5).toFixed(1)} shown/s`;
+}
+
+/* Whether a polled picture of this card may be asked for now: not while the server is
+   unreachable, the camera is down (the answer would be a 503) or the page is hidden. */
+function canFetch(card) {
+  const camera = state.cameras.get(Number(card.dataset.id));
+  return state.ws !== "down" && !document.hidden && Boolean(camera) && SENDING.includes(camera.state);
+}
+
 function startPictures(card, id) {
   const img = $(".live", card);
   const hist = $(".histogram", card);
   card._timers = [];
+  card._loops = [];
   card._started = true;
-  if (state.streaming) {
-    img.src = `/api/cameras/${id}/stream.mjpg`;
-    img.onerror = () => retryLater(card, () => { img.src = `/api/cameras/${id}/stream.mjpg?r=${Date.now()}`; });
+  card._still = null;
+  if (card._mode !== "poll") {
+    img.onload = () => img.classList.remove("broken");
+    img.onerror = () => {
+      img.classList.add("broken");
+      // While the server is away the /ws reconnect reopens every picture.
+      if (state.ws !== "down") card._timers.push(setTimeout(() => restartPictures(card), 2000));
+    };
+    img.src = `/api/cameras/${id}/stream.mjpg?r=${Date.now()}`;
   } else {
-    poll(card, img, `/api/cameras/${id}/frame.jpg`, POLL_MS);
+    const minMs = () => 1000 / Math.min(MAX_POLL_FPS, Math.max(1, state.cameras.get(id)?.fps || 0));
+    card._loops.push(pollLoop(card, img, `/api/cameras/${id}/frame.jpg`, minMs, () => {
+      (card._shown = card._shown || []).push(performance.now());
+    }));
   }
-  poll(card, hist, `/api/cameras/${id}/histogram.jpg`, HISTOGRAM_MS);
+  card._loops.push(pollLoop(card, hist, `/api/cameras/${id}/histogram.jpg`, () => HISTOGRAM_MS));
 }
 
-function retryLater(card, action) {
-  card._timers.push(setTimeout(action, 2000));
-}
-
-function poll(card, img, url, every) {
-  const next = () => {
-    if (!card.isConnected && card._stopped) return;
-    card._timers.push(setTimeout(() => { img.src = `${url}?t=${Date.now()}`; }, every));
+/* Asks for the next picture as soon as the last one has loaded, no sooner than every
+   minMs() milliseconds; waits without asking while canFetch says no. */
+function pollLoop(card, img, url, minMs, onFrame = null) {
+  const loop = { timer: null, started: 0, stopped: false };
+  const go = () => {
+    if (loop.stopped) return;
+    if (!canFetch(card)) {
+      loop.timer = setTimeout(go, 500);
+      return;
+    }
+    loop.started = performance.now();
+    img.src = `${url}?t=${Date.now()}`;
   };
-  img.onload = next;
-  img.onerror = () => card._timers.push(setTimeout(next, 1000));
-  img.src = `${url}?t=${Date.now()}`;
+  img.onload = () => {
+    img.classList.remove("broken");
+    if (onFrame) onFrame();
+    if (!loop.stopped) loop.timer = setTimeout(go, Math.max(0, minMs() - (performance.now() - loop.started)));
+  };
+  img.onerror = () => {
+    img.classList.add("broken");  // No broken-image icon: the last picture or nothing.
+    if (!loop.stopped) loop.timer = setTimeout(go, 1000);
+  };
+  go();
+  return loop;
 }
 
-function stopPictures(card) {
-  card._stopped = true;
+/* Stop asking for pictures; keep: leave the last ones shown (they are replaced next). */
+function stopPictures(card, keep = false) {
   for (const timer of card._timers || []) clearTimeout(timer);
+  for (const loop of card._loops || []) {
+    loop.stopped = true;
+    clearTimeout(loop.timer);
+  }
+  card._timers = [];
+  card._loops = [];
   for (const img of $$("img", card)) {
     img.onload = null;
     img.onerror = null;
-    img.removeAttribute("src");
+    if (!keep) img.removeAttribute("src");
   }
-  card._stopped = false;
+}
+
+function restartPictures(card) {
+  if (!card._started) return;
+  stopPictures(card, true);
+  startPictures(card, Number(card.dataset.id));
+}
+
+/* An MJPEG <img> fires no event when its stream ends or stalls: it just keeps the last
+   picture. Every few seconds the picture of each streamed live camera is sampled; one
+   that has not changed for STALL_MS is reopened. (A camera that sends the very same
+   picture for that long is reopened too, which costs one request.) */
+const sampler = document.createElement("canvas");
+sampler.width = 16;
+sampler.height = 12;
+const sampleContext = sampler.getContext("2d", { willReadFrequently: true });
+
+function pictureHash(img) {
+  try {
+    sampleContext.drawImage(img, 0, 0, sampler.width, sampler.height);
+    const data = sampleContext.getImageData(0, 0, sampler.width, sampler.height).data;
+    let hash = 0;
+    for (let i = 0; i < data.length; i += 4) hash = (hash * 31 + data[i] + 7 * data[i + 1] + 13 * data[i + 2]) >>> 0;
+    return hash;
+  } catch (_) {
+    return null;
+  }
+}
+
+function watchStreams() {
+  const now = Date.now();
+  for (const [id, card] of state.cards) {
+    const camera = state.cameras.get(id);
+    const img = $(".live", card);
+    if (!card._started || card._mode === "poll" || state.ws !== "up" || document.hidden
+        || !camera || camera.state !== "live" || !(camera.fps >= 1) || !img.naturalWidth) {
+      card._still = null;
+      continue;
+    }
+    const hash = pictureHash(img);
+    if (hash === null) continue;
+    if (!card._still || card._still.hash !== hash) card._still = { hash, since: now };
+    else if (now - card._still.since >= STALL_MS) restartPictures(card);
+  }
 }
 
 function recordMotion(id, ts, value) {
@@ -392,7 +584,7 @@ function recordMotion(id, ts, value) {
 function motionChart(card) {
   if (card._chart || !window.uPlot) return card._chart || null;
   const el = $(".motion", card);
-  const width = Math.max(200, el.clientWidth || 256);
+  const width = Math.max(120, el.clientWidth || 256);
   card._chart = new uPlot({
     width, height: 120,
     legend: { show: false },
@@ -422,6 +614,10 @@ function motionChart(card) {
       }],
     },
   }, [[], []], el);
+  new ResizeObserver(() => {
+    const fit = Math.max(120, el.clientWidth);
+    if (Math.abs(fit - card._chart.width) > 2) card._chart.setSize({ width: fit, height: 120 });
+  }).observe(el);
   return card._chart;
 }
 
@@ -450,29 +646,87 @@ $("#add-camera").addEventListener("submit", async (event) => {
 
 /* ---------- Alarms ---------- */
 
+function plural(count, word) {
+  return `${count} ${word}${count === 1 ? "" : "s"}`;
+}
+
+function objectsText(message) {
+  const objects = message.objects || [];
+  if (objects.length) {
+    return objects.map((o) => `#${o.track_id ?? "?"} ${o.box[2]}×${o.box[3]} px at (${o.box[0]}, ${o.box[1]}), `
+      + `${Math.round(o.speed_px_s)} px/s`).join(", ");
+  }
+  return (message.boxes || []).map((b) => `${b[2]}×${b[3]} px at (${b[0]}, ${b[1]})`).join(", ");
+}
+
+function alarmKey(cameraId, eventId, ts) {
+  return eventId === null || eventId === undefined ? `c${cameraId}@${ts}` : `e${eventId}`;
+}
+
+/* One entry per event: made by its first alarm (or from GET /api/events on page load),
+   updated by the next alarms of the event and by its motion_end. */
+function alarmItem(key, cameraId, eventId, started) {
+  let item = state.alarmItems.get(key);
+  if (item) return { item, fresh: false };
+  item = document.createElement("li");
+  if (eventId !== null && eventId !== undefined) item.dataset.event = eventId;
+  item.dataset.camera = cameraId;
+  item.innerHTML = `<span class="shot"><span class="muted">snapshot not saved</span></span>
+    <div><b class="who"></b> — <span class="when"></span> <span class="alarms muted"></span><br>
+    <span class="objects"></span><br><span class="ongoing">moving…</span> <span class="links"></span></div>`;
+  $(".when", item).textContent = fmtDate(started);
+  state.alarmItems.set(key, item);
+  return { item, fresh: true };
+}
+
+function setAlarmPicture(item, snapshot, difference) {
+  if (snapshot && !$("img", item)) {
+    $(".shot", item).innerHTML = `<a href="${snapshot}" target="_blank"><img src="${snapshot}" alt=""></a>`;
+  }
+  if (difference && !$(".links a", item)) {
+    $(".links", item).innerHTML = `<a href="${difference}" target="_blank">difference</a>`;
+  }
+}
+
+function setAlarmEnded(item, durationS, maxArea) {
+  const ongoing = $(".ongoing", item);
+  ongoing.textContent = `ended after ${durationS.toFixed(1)} s, peak area ${Math.round(maxArea)} px`;
+  ongoing.classList.add("ended");
+}
+
+function trimAlarmList() {
+  const list = $("#alarm-list");
+  while (list.children.length > ALARM_LIST_MAX) {
+    const last = list.lastElementChild;
+    for (const [key, item] of state.alarmItems) if (item === last) state.alarmItems.delete(key);
+    last.remove();
+  }
+}
+
 function onAlarm(message) {
-  const name = escapeHtml(message.camera_name || cameraName(message.camera_id));
+  const name = message.camera_name || cameraName(message.camera_id);
   const count = (message.boxes || []).length;
   const list = state.alarmsAt.get(message.camera_id) || [];
   list.push(message.ts);
   state.alarmsAt.set(message.camera_id, list.slice(-50));
-  toast(`<b>Motion on ${name}</b> at ${fmtTime(message.ts)} — ${count} object${count === 1 ? "" : "s"}`
-    + (message.snapshot ? `<br><img src="${message.snapshot}" alt="snapshot">` : ""));
-  beep();
-  const item = document.createElement("li");
-  item.dataset.event = message.event_id;
+  noteCamera(message.camera_id);
+  const key = alarmKey(message.camera_id, message.event_id, message.ts);
+  const { item, fresh } = alarmItem(key, message.camera_id, message.event_id, message.ts);
+  item._alarms = (item._alarms || 0) + 1;
+  $(".who", item).textContent = name;
+  $(".alarms", item).textContent = item._alarms > 1 ? `(${item._alarms} alarms, last at ${fmtTime(message.ts)})` : "";
+  $(".objects", item).textContent = `${plural(count, "object")}: ${objectsText(message)}`;
   // No snapshot when the disk refused it (full, read-only): the event still counts.
-  const picture = message.snapshot
-    ? `<a href="${message.snapshot}" target="_blank"><img src="${message.snapshot}" alt=""></a>`
-    : '<span class="muted">snapshot not saved</span>';
-  item.innerHTML = `${picture}
-    <div><b>${name}</b> — ${fmtDate(message.ts)}<br>
-    ${count} object${count === 1 ? "" : "s"}: ${(message.objects || []).map((o) =>
-      `#${o.track_id ?? "?"} ${o.box[2]}×${o.box[3]} px at (${o.box[0]}, ${o.box[1]}), ${Math.round(o.speed_px_s)} px/s`).join(", ")}
-    <br><span class="ongoing">moving…</span>
-    ${message.difference ? `<a href="${message.difference}" target="_blank">difference</a>` : ""}</div>`;
-  $("#alarm-list").prepend(item);
-  while ($("#alarm-list").children.length > 100) $("#alarm-list").lastElementChild.remove();
+  setAlarmPicture(item, message.snapshot, message.difference);
+  if (fresh || item !== $("#alarm-list").firstElementChild) $("#alarm-list").prepend(item);
+  trimAlarmList();
+
+  const repeats = item._alarms > 1 ? ` <span class="repeats">×${item._alarms}</span>` : "";
+  toast(`<div class="toast-text"><b>Motion on ${escapeHtml(name)}</b>${repeats}<br>${fmtTime(message.ts)} — `
+    + `${plural(count, "object")}</div>`
+    + (message.snapshot ? `<img src="${message.snapshot}" alt="snapshot">` : ""),
+  "alarm", `alarm:${key}`);
+  beep();
   const card = state.cards.get(message.camera_id);
   if (card) {
     card.classList.remove("flash");
@@ -483,11 +737,56 @@ function onAlarm(message) {
 }
 
 function onMotionEnd(message) {
-  const item = $(`#alarm-list li[data-event="${message.event_id}"] .ongoing`);
-  if (item) item.textContent = `ended after ${message.duration_s.toFixed(1)} s, peak area ${Math.round(message.max_area)} px`;
+  const item = state.alarmItems.get(alarmKey(message.camera_id, message.event_id, message.ts));
+  if (item) setAlarmEnded(item, message.duration_s, message.max_area);
+  const shown = $$("#toasts > .toast").find((t) => t.dataset.key === `alarm:e${message.event_id}`);
+  if (shown) shown.classList.add("ended");
 }
 
-$("#clear-alarms").addEventListener("click", () => { $("#alarm-list").innerHTML = ""; });
+/* The recent events (the list survived no reload before), with their first snapshots. */
+async function loadRecentAlarms() {
+  let events;
+  try {
+    events = await api("GET", "/api/events?limit=500");
+  } catch (_) {
+    return;  // Shown on the next action; the live alarms still come.
+  }
+  for (const event of events) noteCamera(event.camera_id);
+  renderCameraFilter();
+  const clearedAt = Number(localStorage.getItem("vigil.alarmsClearedAt") || 0);
+  const recent = events.filter((e) => e.started_at > clearedAt).slice(0, HISTORY_EVENTS);
+  if (!recent.length) return;
+  const pictures = new Map();  // event id -> {frame, difference}: its first snapshots
+  try {
+    const since = Math.min(...recent.map((e) => e.started_at)) - 1;
+    for (const snap of await api("GET", `/api/snapshots?since=${since}&limit=2000`)) {
+      if (snap.event_id === null || snap.event_id === undefined) continue;
+      const entry = pictures.get(snap.event_id) || {};
+      entry[snap.kind] = snap.url;  // Newest first: the last one seen is the first taken.
+      pictures.set(snap.event_id, entry);
+    }
+  } catch (_) { /* listed without pictures */ }
+  const list = $("#alarm-list");
+  for (const event of recent) {  // Newest first, after any alarm that came meanwhile.
+    const key = alarmKey(event.camera_id, event.id, event.started_at);
+    if (state.alarmItems.has(key)) continue;
+    const { item } = alarmItem(key, event.camera_id, event.id, event.started_at);
+    $(".who", item).textContent = cameraName(event.camera_id);
+    $(".objects", item).textContent = `${plural((event.boxes || []).length, "object")}`
+      + `${event.boxes && event.boxes.length ? `: ${objectsText(event)}` : ""}`;
+    const picture = pictures.get(event.id) || {};
+    setAlarmPicture(item, picture.frame, picture.difference);
+    if (event.ended_at) setAlarmEnded(item, event.ended_at - event.started_at, event.max_area);
+    list.append(item);
+  }
+  trimAlarmList();
+}
+
+$("#clear-alarms").addEventListener("click", () => {
+  $("#alarm-list").innerHTML = "";
+  state.alarmItems.clear();
+  localStorage.setItem("vigil.alarmsClearedAt", String(Date.now() / 1000));
+});
 
 /* ---------- WebSocket ---------- */
 
@@ -501,13 +800,29 @@ function connect() {
     wsDelay = 500;
     badge.textContent = "live";
     badge.className = "badge badge-live";
-    loadCameras();
+    badge.title = "live connection to the server";
+    const reconnected = state.wsEverUp;
+    state.ws = "up";
+    state.wsEverUp = true;
+    for (const [id, card] of state.cards) updateCard(card, state.cameras.get(id));
+    // Streams that were open when the server went away ended without an error event:
+    // open every picture again (a restarted server may also have other cameras).
+    if (reconnected) {
+      for (const card of state.cards.values()) restartPictures(card);
+      loadCameras();
+      loadGallery();
+    }
   };
   socket.onclose = () => {
-    badge.textContent = "reconnecting";
+    badge.textContent = "server unreachable";
     badge.className = "badge badge-reconnecting";
+    badge.title = "no connection to the server: trying again";
+    if (state.ws !== "down") {
+      state.ws = "down";
+      for (const [id, card] of state.cards) updateCard(card, state.cameras.get(id));
+    }
     setTimeout(connect, wsDelay);
-    wsDelay = Math.min(wsDelay * 2, 10000);
+    wsDelay = Math.min(wsDelay * 2, 5000);
   };
   socket.onmessage = (event) => {
     let message;
@@ -544,16 +859,38 @@ function onCameraStatus(message) {
 
 /* ---------- Uploads ---------- */
 
+function dismissedAnalyses() {
+  try {
+    return JSON.parse(localStorage.getItem("vigil.dismissedAnalyses") || "[]");
+  } catch (_) {
+    return [];
+  }
+}
+
 function analysisPanel(id, filename) {
   let panel = state.analyses.get(id);
   if (panel) return panel;
   panel = document.createElement("article");
   panel.className = "analysis";
-  panel.innerHTML = `<header><b class="file"></b> <span class="badge status">queued</span></header>
+  panel.dataset.id = id;
+  panel.innerHTML = `<header><b class="file"></b> <span class="badge status">queued</span>
+    <button type="button" class="dismiss" title="remove this panel (the analysis stays on the server)"
+      aria-label="dismiss" hidden>✕</button></header>
     <label>Upload <progress class="upload-bar" max="1" value="1"></progress></label>
     <label>Analysis <progress class="analysis-bar" max="1" value="0"></progress> <span class="pct"></span></label>
     <div class="live-view"></div><p class="error"></p><div class="result"></div>`;
   $(".file", panel).textContent = filename || id;
+  $(".dismiss", panel).addEventListener("click", () => {
+    const key = panel.dataset.id;
+    if (!key.startsWith("upload-")) {
+      const dismissed = dismissedAnalyses().filter((d) => d !== key);
+      dismissed.push(key);
+      localStorage.setItem("vigil.dismissedAnalyses", JSON.stringify(dismissed.slice(-200)));
+    }
+    for (const [k, el] of state.analyses) if (el === panel) state.analyses.delete(k);
+    panel.remove();
+    assignPictureModes();
+  });
   $("#analyses").prepend(panel);
   state.analyses.set(id, panel);
   return panel;
@@ -584,7 +921,7 @@ $("#upload").addEventListener("submit", (event) => {
     let body = {};
     try { body = JSON.parse(xhr.responseText); } catch (_) { /* not JSON */ }
     if (xhr.status !== 202) {
-      $(".status", pending).textContent = "failed";
+      setStatus(pending, null, "failed");
       $(".error", pending).textContent = typeof body.detail === "string" ? body.detail : `upload failed (${xhr.status})`;
       return;
     }
@@ -596,7 +933,7 @@ $("#upload").addEventListener("submit", (event) => {
     form.reset();
   };
   xhr.onerror = () => {
-    $(".status", pending).textContent = "failed";
+    setStatus(pending, null, "failed");
     $(".error", pending).textContent = "the upload was interrupted";
   };
   xhr.send(data);
@@ -617,9 +954,12 @@ function setStatus(panel, id, status) {
   const badge = $(".status", panel);
   badge.textContent = status;
   badge.className = `badge status badge-${status}`;
+  $(".dismiss", panel).hidden = !["done", "failed"].includes(status);
   const view = $(".live-view", panel);
   if (status === "running" && !$("img", view)) {
-    view.innerHTML = `<img alt="analysis in progress" src="/api/analyses/${id}/stream.mjpg">`;
+    // A live stream holds a connection: one camera fewer streams meanwhile.
+    view.innerHTML = `<img class="streaming" alt="analysis in progress" src="/api/analyses/${id}/stream.mjpg">`;
+    assignPictureModes();
   }
 }
 
@@ -640,40 +980,67 @@ async function refreshAnalysis(id) {
     renderResult(panel, analysis);
   }
   if (analysis.status === "failed") $(".live-view", panel).innerHTML = "";
+  if (analysis.status === "done" || analysis.status === "failed") assignPictureModes();
+}
+
+function fixed(value, digits) {
+  return value === null || value === undefined || value === "" || !Number.isFinite(Number(value))
+    ? "" : Number(value).toFixed(digits);
 }
 
 function renderResult(panel, analysis) {
   const links = analysis.links;
   const report = analysis.report || {};
-  const rows = (report.tracks || []).map((t) => `<tr><td>#${t.track_id}</td><td>${t.first_frame}–${t.last_frame}</td>
-    <td>${t.duration_s}</td><td>${t.distance_px}</td><td>${t.mean_speed_px_s}</td><td>${t.max_speed_px_s}</td>
-    <td>${t.distance_m ?? ""}</td><td>${t.mean_speed_km_h ?? ""}</td></tr>`).join("");
+  const tracks = report.tracks || [];
+  // Metres and km/h only with a calibrated camera: otherwise the columns stay out.
+  const calibrated = tracks.some((t) => (t.distance_m ?? null) !== null || (t.mean_speed_km_h ?? null) !== null);
+  const rows = tracks.map((t) => `<tr><td>#${t.track_id}</td><td>${t.first_frame}–${t.last_frame}</td>
+    <td>${fixed(t.duration_s, 2)}</td><td>${fixed(t.distance_px, 1)}</td><td>${fixed(t.mean_speed_px_s, 1)}</td>
+    <td>${fixed(t.max_speed_px_s, 1)}</td>${calibrated
+      ? `<td>${fixed(t.distance_m, 2)}</td><td>${fixed(t.mean_speed_km_h, 1)}</td>` : ""}</tr>`).join("");
+  const columns = calibrated ? 8 : 6;
+  const events = report.events ?? 0;
   $(".live-view", panel).innerHTML = `<img alt="last analysed frame" src="${links.stream}?end=1">`;
   $(".result", panel).innerHTML = `
-    <p>${report.frames ?? "?"} frames at ${report.fps ?? "?"} fps, ${report.events ?? 0} events,
-      ${(report.tracks || []).length} tracked objects, method ${escapeHtml(report.method ?? "")}.</p>
+    <p>${report.frames ?? "?"} frames at ${report.fps ?? "?"} fps, ${plural(events, "event")},
+      ${plural(tracks.length, "tracked object")}, method ${escapeHtml(report.method ?? "")}.</p>
     <p class="links"><a href="${links.annotated}">annotated.avi</a> · <a href="${links.tracks}">tracks.csv</a> ·
       <a href="${links.report_html}" target="_blank">report</a> · <a href="${links.report}" target="_blank">report.json</a></p>
-    <table class="tracks"><thead><tr><th>track</th><th>frames</th><th>duration s</th><th>distance px</th>
-      <th>mean px/s</th><th>max px/s</th><th>distance m</th><th>km/h</th></tr></thead><tbody>${rows
-      || '<tr><td colspan="8">no moving objects found</td></tr>'}</tbody></table>`;
+    <div class="table-wrap"><table class="tracks"><thead><tr><th>track</th><th>frames</th><th>duration s</th>
+      <th>distance px</th><th>mean px/s</th><th>max px/s</th>${calibrated ? "<th>distance m</th><th>km/h</th>" : ""}
+      </tr></thead><tbody>${rows
+      || `<tr><td colspan="${columns}">no moving objects found</td></tr>`}</tbody></table></div>`;
 }
 
 async function loadAnalyses() {
   try {
-    const analyses = await api("GET", "/api/analyses");
-    for (const analysis of analyses.slice(0, 10).reverse()) refreshAnalysis(analysis.id);
+    const dismissed = new Set(dismissedAnalyses());
+    const analyses = (await api("GET", "/api/analyses")).filter((a) => !dismissed.has(a.id)).slice(0, 10);
+    // Panels made now, oldest first (each goes on top), so the newest stays on top
+    // whatever order their details arrive in.
+    for (const analysis of analyses.slice().reverse()) analysisPanel(analysis.id, analysis.filename);
+    for (const analysis of analyses) refreshAnalysis(analysis.id);
   } catch (_) { /* shown on the next action */ }
 }
 
 /* ---------- Snapshot gallery ---------- */
 
+/* A camera id seen in an event or a snapshot: a deleted camera's stay in the gallery filter. */
+function noteCamera(id) {
+  if (id === null || id === undefined || state.knownCameraIds.has(id)) return;
+  state.knownCameraIds.add(id);
+  if (state.camerasLoaded && !state.cameras.has(id)) renderCameraFilter();
+}
+
 function renderCameraFilter() {
   const select = $("#gallery-filter select[name=camera_id]");
   const current = select.value;
+  const deleted = Array.from(state.knownCameraIds).filter((id) => !state.cameras.has(id)).sort((a, b) => a - b);
   select.innerHTML = '<option value="">all</option>' + Array.from(state.cameras.values())
-    .map((c) => `<option value="${c.id}">${escapeHtml(c.name)}</option>`).join("");
+    .map((c) => `<option value="${c.id}">${escapeHtml(c.name)}</option>`).join("")
+    + (state.camerasLoaded ? deleted.map((id) => `<option value="${id}">camera ${id} (deleted)</option>`).join("") : "");
   select.value = current;
+  if (select.value !== current) select.value = "";
 }
 
 function galleryQuery() {
@@ -697,6 +1064,7 @@ async function loadGallery() {
     toast(`Cannot load snapshots: ${escapeHtml(error.message)}`, "error");
     return;
   }
+  for (const snap of snapshots) noteCamera(snap.camera_id);
   const selected = new Set($$("#thumbs input:checked").map((i) => i.value));
   $("#thumbs").innerHTML = snapshots.map((s) => `<figure class="thumb">
       <label><input type="checkbox" value="${s.id}" ${selected.has(String(s.id)) ? "checked" : ""}>
@@ -745,8 +1113,12 @@ $("#gallery-filter").addEventListener("submit", (e) => { e.preventDefault(); loa
 /* ---------- Start ---------- */
 
 renderMute();
-loadCameras().then(loadGallery);
+loadCameras().then(() => {
+  loadGallery();
+  loadRecentAlarms();
+});
 loadAnalyses();
 connect();
-setInterval(loadCameras, 15000);
+setInterval(() => { if (state.ws !== "down") loadCameras(); }, 15000);
 setInterval(() => { for (const id of state.cameras.keys()) drawMotion(id, Date.now() / 1000); }, 1000);
+setInterval(watchStreams, 2000);

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import re
 from collections.abc import Callable
 from pathlib import Path
 from typing import Any
@@ -64,6 +65,9 @@ def test_dashboard_in_chromium(
     panel = page.locator(".analysis").first
     assert panel.locator(".analysis-bar").evaluate("b => b.value") == 1
     assert panel.locator("table.tracks tbody tr").count() >= 1
+    # No metre or km/h columns without a calibration; "1 event", not "1 events".
+    assert panel.locator("table.tracks thead th").count() == 6
+    assert re.search(r"\b(1 event|\d+ events),", panel.locator(".result p").first.inner_text())
     assert panel.locator("a", has_text="tracks.csv").count() == 1
 
     # The gallery shows the alarm's snapshots.
@@ -89,10 +93,13 @@ def test_more_cameras_than_connections_all_show(
         timeout=30000,
     )
     sources = page.locator(".card img.live").evaluate_all("imgs => imgs.map(i => i.src)")
-    assert all("/frame.jpg" in s for s in sources), "many cameras are polled, not streamed"
-    first = page.locator(".card img.live").first.get_attribute("src")
+    # Four streams (the browser's connection budget, less two for the rest); polled after.
+    assert ["/stream.mjpg" in s for s in sources] == [True] * 4 + [False] * 3, sources
+    assert all("/frame.jpg" in s for s in sources[4:]), sources
+    last = page.locator(".card img.live").last.get_attribute("src")
     page.wait_for_function(
-        f"() => document.querySelector('.card img.live').src !== '{first}'", timeout=10000
+        f"() => [...document.querySelectorAll('.card img.live')].pop().src !== '{last}'",
+        timeout=10000,
     )
 
 

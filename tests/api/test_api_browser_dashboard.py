@@ -1,0 +1,348 @@
+"""The dashboard in a real Chromium (Playwright), as an outside audit used it.
+
+A server restart under the page, an alarm flood, sound before the first click, a phone's
+width, the alarm list across events and reloads, a deleted camera's snapshots, many
+cameras, a camera that goes away.
+"""
+
+from __future__ import annotations
+
+import socket
+import threading
+import time
+from collections import Counter
+from collections.abc import Callable, Iterator
+from contextlib import contextmanager
+from pathlib import Path
+from typing import Any
+
+import httpx
+import pytest
+import uvicorn
+
+from app.api.app import create_app
+from app.core.config import Settings
+from tests.api.vigil_livekit import (
+    MjpegCamera,
+    Running,
+    add_camera,
+    live_settings,
+    wait_for,
+)
+
+pytestmark = pytest.mark.browser
+
+PICTURE_HASHES = """(selector) => [...document.querySelectorAll(selector)].map((img) => {
+  const canvas = document.createElement('canvas');
+  canvas.width = 64; canvas.height = 48;
+  const context = canvas.getContext('2d');
+  try { context.drawImage(img, 0, 0, 64, 48); } catch (e) { return -1; }  // broken
+  const data = context.getImageData(0, 0, 64, 48).data;
+  let hash = 0;
+  for (let i = 0; i < data.length; i += 3) hash = (hash * 31 + data[i]) >>> 0;
+  return hash;
+})"""
+
+
+def pictures_move(page: Any, selector: str = ".card img.live", seconds: float = 4.0) -> list[bool]:
+    """Whether each picture showed more than one frame in ``seconds``."""
+    seen: list[set[int]] = []
+    deadline = time.monotonic() + seconds
+    while time.monotonic() < deadline:
+        hashes = page.evaluate(PICTURE_HASHES, selector)
+        seen = seen or [set() for _ in hashes]
+        for known, value in zip(seen, hashes, strict=True):
+            known.add(value)
+        page.wait_for_timeout(200)
+    return [len(known) > 1 for known in seen]
+
+
+@contextmanager
+def server_on(port: int, settings: Settings) -> Iterator[Running]:
+    """A real uvicorn on 127.0.0.1:``port`` (the same port again after a stop)."""
+    sock = socket.socket(socket.AF_INET, socket.SOCK_STREAM)
+    sock.setsockopt(socket.SOL_SOCKET, socket.SO_REUSEADDR, 1)
+    sock.bind(("127.0.0.1", port))
+    config = uvicorn.Config(
+        create_app(settings),
+        ws="websockets-sansio",
+        log_level="warning",
+        timeout_graceful_shutdown=1,
+        lifespan="on",
+    )
+    server = uvicorn.Server(config)
+    thread = threading.Thread(target=server.run, kwargs={"sockets": [sock]}, daemon=True)
+    thread.start()
+    running = Running(f"http://127.0.0.1:{port}", f"ws://127.0.0.1:{port}/ws", server, thread)
+    try:
+        wait_for(lambda: server.started or not thread.is_alive(), 20, "uvicorn to start")
+        assert server.started, "uvicorn failed to start"
+        yield running
+    finally:
+        if thread.is_alive():
+            running.stop()
+        sock.close()
+
+
+def publish(server: Running, message: dict[str, Any]) -> None:
+    """A message on the server's /ws, as a camera worker sends it."""
+    server.server.config.app.state.services.bus.publish(message)
+
+
+def alarm(camera_id: int, event_id: int, ts: float, name: str = "yard") -> dict[str, Any]:
+    return {
+        "type": "alarm",
+        "camera_id": camera_id,
+        "camera_name": name,
+        "event_id": event_id,
+        "ts": ts,
+        "frame": 1,
+        "boxes": [[10, 20, 30, 40]],
+        "objects": [{"track_id": 1, "box": [10, 20, 30, 40], "area": 1200.0, "speed_px_s": 5.0}],
+        "snapshot": None,
+        "snapshot_id": None,
+        "difference": None,
+    }
+
+
+def test_pictures_come_back_after_a_server_restart_and_cards_say_when_it_is_away(
+    page: Any, motion_video: Path, tmp_path: Path
+) -> None:
+    probe = socket.socket()
+    probe.bind(("127.0.0.1", 0))
+    port = probe.getsockname()[1]
+    probe.close()
+    settings = live_settings(tmp_path / "data")
+    errors: list[str] = []
+    page.on("pageerror", lambda error: errors.append(str(error)))
+    with server_on(port, settings) as server:
+        add_camera(server.base, f"file://{motion_video}", name="lane")
+        add_camera(server.base, f"file://{motion_video}", name="road")
+        page.goto(server.base + "/")
+        page.wait_for_function(
+            "() => [...document.querySelectorAll('.card img.live')]"
+            ".filter(i => i.naturalWidth > 0).length === 2",
+            timeout=20000,
+        )
+        assert all(pictures_move(page))
+    # The server is away: no card claims to be live, none shows a frame rate.
+    page.wait_for_function(
+        "() => [...document.querySelectorAll('.card .state')]"
+        ".every(b => b.textContent === 'server unreachable')",
+        timeout=10000,
+    )
+    assert page.locator(".card .fps").all_inner_texts() == ["", ""]
+    assert page.locator(".card.stale").count() == 2
+    with server_on(port, settings):
+        page.wait_for_function(
+            "() => [...document.querySelectorAll('.card .state')]"
+            ".every(b => b.textContent === 'live')",
+            timeout=20000,
+        )
+        # The MJPEG streams ended with the old server: the page opened them again.
+        wait_for(lambda: all(pictures_move(page, seconds=2.0)), 15, "the pictures to move again")
+        assert page.locator(".card.stale").count() == 0
+        assert "fps" in page.locator(".card .fps").first.inner_text()
+    assert errors == []
+
+
+def test_alarm_toasts_are_capped_and_repeats_of_an_event_merge(
+    serve: Callable[..., Running], page: Any
+) -> None:
+    server = serve()
+    page.goto(server.base + "/")
+    page.wait_for_selector("#ws-state.badge-live", timeout=10000)
+    now = time.time()
+    for event_id in range(1, 11):  # Ten events on ten cameras at once.
+        publish(server, alarm(event_id, event_id, now + event_id * 0.01, name=f"cam{event_id}"))
+    page.wait_for_function("() => document.querySelectorAll('#toasts .toast').length === 10")
+    visible = page.locator("#toasts .toast:visible")
+    assert visible.count() == 3
+    assert "cam10" in visible.first.inner_text(), "newest first"
+    assert page.locator("#toasts-more").inner_text().startswith("+7 more")
+    column = page.evaluate("document.getElementById('toasts').getBoundingClientRect().height")
+    assert column < 450, column
+    # Between the toasts, clicks reach the page below.
+    assert page.evaluate(
+        "(() => { const t = document.getElementById('toasts').getBoundingClientRect();"
+        " const e = document.elementFromPoint(t.left + t.width / 2, t.bottom + 40);"
+        " return !document.getElementById('toasts').contains(e); })()"
+    )
+
+    # Five more alarms of event 3: one toast, updated, on top; one list entry.
+    for i in range(5):
+        publish(server, alarm(3, 3, now + 1 + i, name="cam3"))
+    page.wait_for_function(
+        "() => document.querySelector('#toasts .toast').textContent.includes('×6')"
+    )
+    assert page.locator("#toasts .toast").count() == 10
+    assert page.locator('#alarm-list li[data-event="3"]').count() == 1
+
+    page.click("#toasts-dismiss")
+    page.wait_for_function("() => document.querySelectorAll('#toasts .toast').length === 0")
+    assert page.locator("#toasts-more").is_hidden()
+
+
+def test_sound_waits_for_a_click_and_says_so(serve: Callable[..., Running], page: Any) -> None:
+    server = serve()
+    page.add_init_script(
+        "window.__oscillators = 0;"
+        "const make = AudioContext.prototype.createOscillator;"
+        "AudioContext.prototype.createOscillator = function () {"
+        " window.__oscillators++; return make.call(this); };"
+    )
+    page.goto(server.base + "/")
+    page.wait_for_selector("#ws-state.badge-live", timeout=10000)
+    mute = page.locator("#mute")
+    # No emoji (a box without emoji fonts): an inline SVG icon.
+    assert mute.locator("svg").count() == 1 and "🔔" not in mute.inner_text()
+    assert "click to enable sound" in mute.inner_text().lower()
+    publish(server, alarm(1, 1, time.time()))
+    page.wait_for_selector("#alarm-list li")
+    assert page.evaluate("window.__oscillators") == 0
+
+    # A click on the button itself enables sound (and does not mute it).
+    mute.click()
+    page.wait_for_function("() => document.getElementById('mute').textContent.includes('Sound on')")
+    assert mute.get_attribute("aria-pressed") == "false"
+    publish(server, alarm(1, 2, time.time()))
+    page.wait_for_function("() => window.__oscillators > 0")
+    mute.click()
+    assert "Sound off" in mute.inner_text() and mute.get_attribute("aria-pressed") == "true"
+
+
+def test_dashboard_fits_a_phone(
+    serve: Callable[..., Running], page: Any, motion_video: Path
+) -> None:
+    server = serve()
+    add_camera(server.base, f"file://{motion_video}", name="lane")
+    page.set_viewport_size({"width": 390, "height": 844})
+    page.goto(server.base + "/")
+    page.wait_for_function(
+        "() => document.querySelector('.card img.live')?.naturalWidth > 0", timeout=20000
+    )
+    page.wait_for_timeout(1500)  # The motion chart is drawn.
+    sizes = page.evaluate(
+        "({ scroll: document.documentElement.scrollWidth,"
+        " client: document.documentElement.clientWidth,"
+        " mute: document.getElementById('mute').getBoundingClientRect().right,"
+        " badge: document.getElementById('ws-state').getBoundingClientRect().right,"
+        " card: document.querySelector('.card').getBoundingClientRect().right })"
+    )
+    assert sizes["scroll"] <= sizes["client"] == 390, sizes
+    for name in ("mute", "badge", "card"):
+        assert sizes[name] <= 390, sizes
+
+
+def test_alarm_list_one_entry_per_event_kept_across_reloads_and_deleted_cameras_filtered(
+    serve: Callable[..., Running], page: Any, motion_video: Path
+) -> None:
+    server = serve()
+    base = server.base
+    page.goto(base + "/")
+    page.wait_for_selector("#ws-state.badge-live", timeout=10000)
+    # Two alarms of one event, then its end: one entry, not moving any more.
+    now = time.time()
+    publish(server, alarm(7, 900, now))
+    publish(server, alarm(7, 900, now + 1))
+    publish(
+        server,
+        {"type": "motion_end", "camera_id": 7, "event_id": 900, "ts": now + 2,
+         "duration_s": 2.0, "max_area": 1200.0},
+    )  # fmt: skip
+    page.wait_for_function(
+        "() => document.querySelector('#alarm-list li .ongoing')?.textContent.startsWith('ended')"
+    )
+    assert page.locator("#alarm-list li").count() == 1
+    assert "moving" not in page.locator("#alarm-list").inner_text()
+
+    # A real camera alarms, is stopped and deleted; its event and snapshots stay.
+    lane = add_camera(base, f"file://{motion_video}", name="lane", activate=True)
+    wait_for(lambda: httpx.get(f"{base}/api/events").json(), 30, "an event")
+    httpx.post(f"{base}/api/cameras/{lane}/stop").raise_for_status()
+    wait_for(
+        lambda: all(e["ended_at"] for e in httpx.get(f"{base}/api/events").json()),
+        15,
+        "the event to end",
+    )
+    httpx.delete(f"{base}/api/cameras/{lane}").raise_for_status()
+
+    page.reload()
+    entry = page.locator(f'#alarm-list li[data-camera="{lane}"]').first
+    entry.wait_for(timeout=10000)
+    assert f"camera {lane} (deleted)" in entry.inner_text()
+    assert "ended after" in entry.inner_text()
+    assert entry.locator("img").count() == 1, "the event's snapshot"
+    option = page.locator(
+        f'#gallery-filter select[name=camera_id] option[value="{lane}"]'
+    ).inner_text()
+    assert option == f"camera {lane} (deleted)"
+    page.select_option("#gallery-filter select[name=camera_id]", str(lane))
+    page.click("#gallery-filter button[type=submit]")
+    page.wait_for_selector("#thumbs figure", timeout=10000)
+    assert f"camera {lane} (deleted)" in page.locator("#thumbs figcaption").first.inner_text()
+
+    # "Clear list" holds across a reload.
+    page.click("#clear-alarms")
+    page.reload()
+    page.wait_for_selector("#ws-state.badge-live", timeout=10000)
+    page.wait_for_timeout(1000)
+    assert page.locator("#alarm-list li").count() == 0
+
+
+def test_many_cameras_stream_what_connections_allow_and_poll_the_rest_at_their_rate(
+    serve: Callable[..., Running], page: Any, motion_video: Path
+) -> None:
+    server = serve()
+    for i in range(6):
+        add_camera(server.base, f"file://{motion_video}", name=f"cam{i}")
+    page.goto(server.base + "/")
+    page.wait_for_function(
+        "() => [...document.querySelectorAll('.card img.live')]"
+        ".filter(i => i.naturalWidth > 0).length === 6",
+        timeout=30000,
+    )
+    sources = page.locator(".card img.live").evaluate_all("imgs => imgs.map(i => i.src)")
+    assert ["stream.mjpg" in s for s in sources] == [True] * 4 + [False] * 2, sources
+    polled: Counter[str] = Counter()
+
+    def count(response: Any) -> None:
+        if "/frame.jpg" in response.url and response.status == 200:
+            polled[response.url.split("/")[5]] += 1
+
+    page.on("response", count)
+    page.wait_for_timeout(5000)
+    page.remove_listener("response", count)
+    rates = {camera: n / 5 for camera, n in polled.items()}
+    # The clip is 15 fps: a polled card asks again as soon as a picture loads (it was
+    # every 250 ms plus the round trip, under 4 a second).
+    assert len(rates) == 2 and all(rate >= 6 for rate in rates.values()), rates
+    assert "shown/s" in page.locator(".card.polled .fps").first.inner_text()
+
+
+def test_a_camera_that_goes_away_asks_for_no_pictures_meanwhile(
+    serve: Callable[..., Running], page: Any
+) -> None:
+    camera = MjpegCamera().start()
+    try:
+        server = serve()
+        cam = add_camera(server.base, camera.url, name="door")
+        page.goto(server.base + "/")
+        page.wait_for_function(
+            "() => document.querySelector('.card img.live')?.naturalWidth > 0", timeout=20000
+        )
+        camera.stop()
+        card = page.locator(f'.card[data-id="{cam}"]')
+        wait_for(
+            lambda: card.locator(".state").inner_text() in ("reconnecting", "error"),
+            20,
+            "the camera to be lost",
+        )
+        refused: list[str] = []
+        page.on("response", lambda r: refused.append(r.url) if r.status == 503 else None)
+        page.wait_for_timeout(4000)
+        # It asked for a histogram every second, each a 503 in the console.
+        assert refused == []
+        assert page.locator(".card img.broken:visible").count() == 0
+    finally:
+        camera.stop()

@@ -7,7 +7,7 @@ from dataclasses import dataclass
 
 import cv2
 
-from app.vision.detections import Box, Detection
+from app.vision.detections import BOTTOM, LEFT, RIGHT, TOP, Box, Detection
 from app.vision.types import Mask
 
 
@@ -26,6 +26,7 @@ class BlobExtractor:
     def __call__(self, mask: Mask, scale: float = 1.0) -> list[Detection]:
         contours, _ = cv2.findContours(mask, cv2.RETR_EXTERNAL, cv2.CHAIN_APPROX_SIMPLE)
         area_scale = scale * scale
+        height, width = mask.shape[:2]
         detections = []
         for contour in contours:
             x, y, w, h = cv2.boundingRect(contour)
@@ -42,19 +43,25 @@ class BlobExtractor:
                 cx, cy = moments["m10"] / moments["m00"], moments["m01"] / moments["m00"]
             else:
                 cx, cy = x + (w - 1) / 2.0, y + (h - 1) / 2.0
-            detections.append(_scaled(x, y, w, h, cx, cy, area, scale))
+            edges = (
+                (LEFT if x == 0 else 0)
+                | (RIGHT if x + w == width else 0)
+                | (TOP if y == 0 else 0)
+                | (BOTTOM if y + h == height else 0)
+            )
+            detections.append(_scaled(x, y, w, h, cx, cy, area, edges, scale))
         detections.sort(key=lambda d: (d.box.y, d.box.x))
         return detections
 
 
 def _scaled(
-    x: int, y: int, w: int, h: int, cx: float, cy: float, area: float, scale: float
+    x: int, y: int, w: int, h: int, cx: float, cy: float, area: float, edges: int, scale: float
 ) -> Detection:
     if scale == 1.0:
-        return Detection(Box(x, y, w, h), (cx, cy), area)
+        return Detection(Box(x, y, w, h), (cx, cy), area, edges)
     # Pixel centres: mask pixel i covers input pixels [i*s, (i+1)*s).
     # math, not NumPy: a NumPy call on a plain number costs more than the arithmetic.
     x0, y0 = math.floor(x * scale), math.floor(y * scale)
     x1, y1 = math.ceil((x + w) * scale), math.ceil((y + h) * scale)
     centroid = ((cx + 0.5) * scale - 0.5, (cy + 0.5) * scale - 0.5)
-    return Detection(Box(x0, y0, x1 - x0, y1 - y0), centroid, area)
+    return Detection(Box(x0, y0, x1 - x0, y1 - y0), centroid, area, edges)

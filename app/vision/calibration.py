@@ -20,7 +20,7 @@ import numpy as np
 import numpy.typing as npt
 
 from app.vision.detections import Detection
-from app.vision.kinematics import fit_velocity, speed
+from app.vision.kinematics import fit_velocity, point_position, speed
 
 Point = tuple[float, float]
 STALE_AFTER_S = 10.0
@@ -137,7 +137,7 @@ class GroundTracker:
                 for t, p in zip(history.times, history.points, strict=True)
                 if time_s - t <= self.window_s
             ]
-            velocity = fit_velocity([t for t, _ in window], [p for _, p in window])
+            velocity = fit_velocity([t for t, _ in window], [point_position(p) for _, p in window])
             out.append(det.with_ground(ground, self.plane.range_m(ground), speed(velocity)))
         for track_id, history in list(self._history.items()):
             if time_s - history.times[-1] > STALE_AFTER_S:

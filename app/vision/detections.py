@@ -4,6 +4,10 @@ from __future__ import annotations
 
 from dataclasses import dataclass, replace
 
+# The frame's edges a blob touches (Detection.edges, bits): there the object may go on
+# out of view, and its box shows only part of it.
+LEFT, RIGHT, TOP, BOTTOM = 1, 2, 4, 8
+
 
 @dataclass(frozen=True, slots=True)
 class Box:
@@ -42,14 +46,17 @@ class Box:
 class Detection:
     """A moving object in one frame.
 
-    The detector fills box, centroid and area; the tracker adds the track id,
-    the distance moved since the object's previous sighting and its smoothed
-    speed; calibration adds ground-plane values when the camera is calibrated.
+    The detector fills box, centroid, area and the frame edges the object
+    touches; the tracker adds the track id, the distance moved since the
+    object's previous sighting and its smoothed speed; calibration adds
+    ground-plane values when the camera is calibrated.
     """
 
     box: Box
     centroid: tuple[float, float]
     area: float
+    edges: int = 0
+    """LEFT | RIGHT | TOP | BOTTOM: the frame's edges its blob touches."""
     track_id: int | None = None
     distance_px: float = 0.0
     speed_px_s: float = 0.0
@@ -64,6 +71,7 @@ class Detection:
             box=self.box,
             centroid=self.centroid,
             area=self.area,
+            edges=self.edges,
             track_id=track_id,
             distance_px=distance_px,
             speed_px_s=speed_px_s,

@@ -13,7 +13,9 @@ away from where it was born, or seen ``min_hits_in_place`` times if it has
 not (Motion's ``minimum_motion_frames``, kept short for what moves): swaying
 leaves and start-up ghosts flicker in place, objects move on. Velocity is a
 Theil-Sen line through the recent centroids, so a frame or two of a blob
-splitting or dragging a remnant along does not tilt it.
+splitting or dragging a remnant along does not tilt it; while the frame's edge
+cuts an object (it enters or leaves), through the side of its box that is
+whole, which moves with it where the centroid of its visible part lags.
 """
 
 from __future__ import annotations
@@ -27,7 +29,7 @@ import numpy as np
 from scipy.optimize import linear_sum_assignment
 
 from app.vision.detections import Box, Detection
-from app.vision.kinematics import fit_velocity, speed
+from app.vision.kinematics import Position, fit_velocity, sighting_position, speed, step_length
 
 Point = tuple[float, float]
 Distance = TypeVar("Distance", float, np.ndarray)
@@ -48,8 +50,9 @@ class Track:
     missed: int = 0
     total_distance_px: float = 0.0
     times: deque[float] = field(default_factory=lambda: deque(maxlen=12))
-    centroids: deque[Point] = field(default_factory=lambda: deque(maxlen=12))
+    positions: deque[Position] = field(default_factory=lambda: deque(maxlen=12))
     trail: deque[Point] = field(default_factory=lambda: deque(maxlen=64))
+    """Recent centroids."""
     velocity: Point = (0.0, 0.0)
     origin: Point = (0.0, 0.0)
     """Where the track was first seen."""
@@ -58,7 +61,7 @@ class Track:
 
     @property
     def last_centroid(self) -> Point:
-        return self.centroids[-1]
+        return self.trail[-1]
 
     def predict(self, time_s: float) -> Point:
         dt = time_s - self.times[-1]
@@ -237,7 +240,9 @@ class Tracker:
             share = det.area / sum(t.box.area for t, _ in inside)
             for track, predicted in inside:
                 box = _clip(_centred(track.box, predicted), det.box)
-                merged.append((track, Detection(box, predicted, track.box.area * share)))
+                # Its share of the blob's pixels, which its piece of the box must hold.
+                area = min(track.box.area * share, float(box.area))
+                merged.append((track, Detection(box, predicted, area)))
                 used_tracks.add(track.key)
             used_detections.add(det_index)
         if not merged:
@@ -253,23 +258,24 @@ class Tracker:
         )
 
     def _extend(self, track: Track, detection: Detection, time_s: float) -> Detection | None:
-        step = math.dist(detection.centroid, track.last_centroid)
+        position = sighting_position(detection)
+        step = step_length(track.positions[-1], position)
         track.hits += 1
         track.missed = 0
         track.box = detection.box
         track.total_distance_px += step
         track.times.append(time_s)
-        track.centroids.append(detection.centroid)
+        track.positions.append(position)
         track.trail.append(detection.centroid)
         track.moved = track.moved or math.dist(detection.centroid, track.origin) > (
             self.config.in_place_px
         )
         window = [
-            (t, c)
-            for t, c in zip(track.times, track.centroids, strict=True)
+            (t, p)
+            for t, p in zip(track.times, track.positions, strict=True)
             if time_s - t <= self.config.smoothing_window_s
         ]
-        track.velocity = fit_velocity([t for t, _ in window], [c for _, c in window])
+        track.velocity = fit_velocity([t for t, _ in window], [p for _, p in window])
         self._confirm_if_due(track)
         if not track.track_id:
             return None
@@ -279,7 +285,7 @@ class Tracker:
         track = Track(key=self._next_key, box=detection.box, origin=detection.centroid)
         self._next_key += 1
         track.times.append(time_s)
-        track.centroids.append(detection.centroid)
+        track.positions.append(sighting_position(detection))
         track.trail.append(detection.centroid)
         self.tracks[track.key] = track
         self._confirm_if_due(track)

@@ -2,6 +2,7 @@ import numpy as np
 import pytest
 
 from app.vision.blobs import BlobExtractor
+from app.vision.detections import BOTTOM, LEFT, RIGHT, TOP
 from app.vision.morphology import Morphology
 
 
@@ -40,3 +41,13 @@ def test_morphology_removes_speckles_and_fills_holes():
     cleaned = Morphology(3, 5)(mask)
     assert cleaned[25, 25] == 255
     assert cleaned[50, 50] == 0
+
+
+def test_blobs_name_the_frame_edges_they_touch():
+    mask = np.zeros((60, 80), np.uint8)
+    mask[0:10, 0:10] = 255  # the top-left corner
+    mask[25:35, 70:80] = 255  # the right edge
+    mask[50:60, 30:50] = 255  # the bottom edge
+    mask[25:35, 30:40] = 255  # inside
+    found = BlobExtractor(min_area=1)(mask, scale=2.0)  # top to bottom, left to right
+    assert [d.edges for d in found] == [LEFT | TOP, 0, RIGHT, BOTTOM]

@@ -6,7 +6,7 @@ import statistics
 
 import pytest
 
-from app.sources.synthetic import Scene, standard_scenes
+from app.sources.synthetic import MovingObject, Scene, standard_scenes
 from app.vision.metrics import ObjectCounts, match_boxes
 from app.vision.pipeline import Pipeline, PipelineConfig
 
@@ -56,3 +56,25 @@ def test_frame_difference_misses_the_slow_uniform_object_the_default_keeps():
     paper, _, _ = run_scene(SCENES["slow-uniform"], "frame-difference")
     ours, _, _ = run_scene(SCENES["slow-uniform"])
     assert paper.detection_rate < 0.5 < 0.95 <= ours.detection_rate
+
+
+def test_an_object_entering_the_view_has_its_own_speed_while_it_enters():
+    # 60 px long at 20 px/s: three seconds with the frame's edge cutting it.
+    scene = Scene(
+        name="entering",
+        frames=80,
+        objects=(MovingObject((-100, 100), (20.0, 0.0), (60, 40), 200, first_frame=20),),
+    )
+    pipeline = Pipeline(PipelineConfig(), fps=scene.fps)
+    entering: list[float] = []
+    for index in range(scene.frames):
+        result = pipeline.process(scene.frame(index))
+        (truth,) = scene.truth(index) or (None,)
+        if truth is None or truth.box.x > 0 or index < 40:  # all in, or not yet settled
+            continue
+        for detection in result.detections:
+            assert detection.box.x == 0  # the only object, cut by the edge
+            entering.append(detection.speed_px_s)
+    assert len(entering) >= 20
+    # The centroid of what shows moves at 10 px/s.
+    assert statistics.median(entering) == pytest.approx(20.0, rel=0.05)

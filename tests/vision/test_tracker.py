@@ -97,6 +97,8 @@ def test_two_objects_crossing_keep_their_ids():
     assert set(before) == set(after) == {1, 2}
     assert after[left_id] > after[3 - left_id]  # the one that started left ended right
     assert all(len(frame) == 2 for frame in out[2:])  # both reported through the crossing
+    # Each gets its share of the merged blob's pixels, which its piece of the box holds.
+    assert all(d.area <= d.box.area for frame in out for d in frame)
 
 
 def test_object_hidden_for_a_few_frames_keeps_its_id():

@@ -194,6 +194,18 @@ def standard_scenes() -> dict[str, Scene]:
                 MovingObject((40, 100), (6.0, 0.0), (60, 40), 200, textured=False, first_frame=15),
             ),
         ),
+        # Grey 150 on a background of 110 +- 20: parts of the object match the scene behind.
+        "camouflaged": Scene(
+            name="camouflaged",
+            frames=150,
+            objects=(MovingObject((-70, 90), (30.0, 0.0), (60, 30), 150, first_frame=20),),
+        ),
+        # Half a pixel a frame: from one frame to the next, hardly anything changes.
+        "creeping": Scene(
+            name="creeping",
+            frames=200,
+            objects=(MovingObject((100, 80), (8.0, 0.0), (40, 60), 160, first_frame=20),),
+        ),
         "small-fast": Scene(
             name="small-fast",
             frames=60,

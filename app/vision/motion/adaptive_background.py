@@ -28,17 +28,23 @@ A running-average background (the classic of Motion and of OpenCV's
   threshold. For the first ``learning_frames`` frames the deviation is the
   plain, unclipped mean of those samples, so a sway is known after one
   swing; flips deep inside a solid changed region (an object stepping in,
-  a ghost uncovered) do not count then.
+  a ghost uncovered) do not count then. Afterwards, still pixels right next
+  to motion teach it at a fraction of the rate: they may be the parts of a
+  camouflaged object that match the background, and a slow one would
+  otherwise teach its own pixels deaf, then vanish piece by piece.
 * **Hysteresis** — weaker pixels next to strong ones count too, so
   low-contrast objects come out whole.
 * **Ghost absorption** — moving pixels that do not change from frame to
   frame and match the background of their still neighbours are absorbed at
   once, eating a ghost (something that was in the first frame and left) from
   its rim inwards (while the scene is being learned, the neighbours are
-  sought three pixels away, past the deaf rim a start-up ghost has); a
-  region that stays "moving" without any change between consecutive frames
-  (a ghost or a stopped object) becomes background after ``absorb_after``
-  frames.
+  sought three pixels away, past the deaf rim a start-up ghost has). Inside
+  an object on the move, only neighbours that have been still for a while
+  count, so a camouflaged object is not eaten from the one point where it
+  matches the background. A region that stays "moving" without any change,
+  from frame to frame or over ``check_every`` frames (a ghost or a stopped
+  object, not one creeping a fraction of a pixel a frame), becomes
+  background after ``absorb_after`` frames.
 
 Per-pixel steps are compiled loops (``adaptive_kernels``), each reading a
 pixel once; the neighbourhood steps (dilate, erode, regions) are OpenCV's.
@@ -49,6 +55,7 @@ cost page faults).
 from __future__ import annotations
 
 import math
+from collections import deque
 
 import cv2
 import numpy as np
@@ -66,6 +73,17 @@ GAIN_INLIERS = 3.0
 GAIN_GRID = 4
 """The gain is measured on every GAIN_GRID-th row and column."""
 
+LEARNING_REACH = 3
+"""Pixels each way: how deep "inside" a region is, and how far a ghost's rim reaches,
+while the scene is being learned."""
+
+LEARNING_SETTLE_FRAMES = 5
+"""``settle_frames`` while the scene is being learned: ghosts of what was in the first
+frame are expected then, and are eaten sooner."""
+
+NEAR_MOTION_DEVIATION_SHARE = 0.3
+"""The share of ``deviation_rate`` at which still pixels next to motion teach it."""
+
 
 class _Buffers:
     """8-bit working images, kept from frame to frame rather than allocated afresh."""
@@ -76,8 +94,7 @@ class _Buffers:
         self.alternate_difference = np.empty(shape, np.uint8)
         self.limit = np.empty(shape, np.uint8)
         self.changing = np.empty(shape, np.uint8)
-        self.lowest = np.empty(shape, np.uint8)
-        self.highest = np.empty(shape, np.uint8)
+        self.rounded_background = np.empty(shape, np.uint8)
         # Raw motion alternates between these two: one holds the previous frame's.
         self.raw = np.zeros(shape, np.uint8)
         self.spare_raw = np.zeros(shape, np.uint8)
@@ -104,6 +121,7 @@ class AdaptiveBackground(MotionMethod):
         absorb_after: int = 30,
         check_every: int = 6,
         learning_frames: int = 20,
+        settle_frames: int = 10,
     ) -> None:
         super().__init__(sensitivity)
         # 3.5 sigma, not the usual 4: the per-pixel variability, not a higher
@@ -120,20 +138,22 @@ class AdaptiveBackground(MotionMethod):
         self.absorb_after = absorb_after
         self.check_every = check_every
         self.learning_frames = learning_frames
+        self.settle_frames = settle_frames
         self._grow_kernel = cv2.getStructuringElement(cv2.MORPH_ELLIPSE, (5, 5))
         self._neighbour_kernel = np.ones((3, 3), np.uint8)
-        # Three pixels each way: how deep "inside" a region is, and how far a
-        # ghost's rim reaches, while the scene is being learned.
-        self._learning_kernel = np.ones((7, 7), np.uint8)
+        side = 2 * LEARNING_REACH + 1
+        self._learning_kernel = np.ones((side, side), np.uint8)
         self._background: FloatImage | None = None
         self._alternate: FloatImage | None = None
         self._weight: FloatImage | None = None  # 0..255: how often the alternate recurs
         self._deviation: FloatImage | None = None  # grey levels: mean |difference| when still
         self._buffers: _Buffers | None = None
-        self._previous_gray: GrayImage | None = None
+        self._recent: deque[GrayImage] = deque(maxlen=check_every)
+        """The last ``check_every`` frames, oldest first."""
         self._previous_mask: Mask | None = None
         self._previous_raw: Mask | None = None
         self._still_frames: np.ndarray | None = None
+        self._settled: np.ndarray | None = None  # frames each pixel has been still, to 255
         self._frame_index = 0
 
     def apply(self, gray: GrayImage) -> MotionResult:
@@ -145,8 +165,8 @@ class AdaptiveBackground(MotionMethod):
             return self._learn(gray)
         assert self._alternate is not None and self._weight is not None
         assert self._deviation is not None and self._buffers is not None
-        assert self._previous_gray is not None and self._previous_raw is not None
-        assert self._previous_mask is not None
+        assert self._recent and self._previous_raw is not None
+        assert self._previous_mask is not None and self._settled is not None
         buffers = self._buffers
         self._frame_index += 1
 
@@ -192,10 +212,15 @@ class AdaptiveBackground(MotionMethod):
         # While the scene is learned, a flip deep inside a solid off-background region
         # is an object stepping in or a ghost uncovered, not a sway: it does not teach.
         solid = cv2.erode(raw, self._learning_kernel) if learning else buffers.nothing
+        near_motion = (
+            cv2.dilate(self._previous_mask, self._learning_kernel)
+            if self._previous_mask.any() and not learning
+            else buffers.nothing
+        )
         mask = np.empty_like(gray)
         moving = kernels.learn(
             gray,
-            self._previous_gray,
+            self._recent[-1],
             difference,
             buffers.main_difference,
             buffers.alternate_difference,
@@ -205,6 +230,7 @@ class AdaptiveBackground(MotionMethod):
             self._previous_raw,
             self._previous_mask,
             solid,
+            near_motion,
             self._background,
             self._alternate,
             self._weight,
@@ -216,23 +242,34 @@ class AdaptiveBackground(MotionMethod):
             self.learning_rate,
             self.mode_rate,
             1.0 / self._frame_index if learning else self.deviation_rate,
+            NEAR_MOTION_DEVIATION_SHARE * self.deviation_rate,
             not learning,
+            self._settled,
             mask,
             buffers.changing,
-            buffers.lowest,
-            buffers.highest,
+            buffers.rounded_background,
         )
-        if moving:
-            self._erode_ghosts(gray, mask, buffers, threshold, learning)
-        if self._frame_index % self.check_every == 0:
-            self._absorb_still_regions(gray, mask, buffers.changing)
-        self._previous_gray = gray
+        checking = self._frame_index % self.check_every == 0
+        if moving or checking:
+            regions, labels = cv2.connectedComponents(mask, connectivity=8, ltype=cv2.CV_16U)
+            if moving:
+                self._erode_ghosts(gray, mask, labels, regions, buffers, threshold, learning)
+            if checking:
+                self._absorb_still_regions(gray, labels, regions, buffers.changing, threshold)
+        self._recent.append(gray)
         self._previous_mask = mask
         self._previous_raw = raw
         return MotionResult(mask, difference, threshold)
 
     def _erode_ghosts(
-        self, gray: GrayImage, mask: Mask, buffers: _Buffers, threshold: float, learning: bool
+        self,
+        gray: GrayImage,
+        mask: Mask,
+        labels: np.ndarray,
+        regions: int,
+        buffers: _Buffers,
+        threshold: float,
+        learning: bool,
     ) -> None:
         """Absorb moving pixels that look like the background right next to them.
 
@@ -251,17 +288,27 @@ class AdaptiveBackground(MotionMethod):
         the object's value in its background, that rim hides the true
         background from a 3x3 search and the ghost would stay for seconds.
         Afterwards the 3x3 search keeps the rims of real objects safe.
+
+        A ghost stands still, so it eats at one ring a frame. A region that
+        changes somewhere is an object on the move, and there only settled
+        neighbours count: where a camouflaged object matches the background at
+        a point of its rim, that point is absorbed with the object's grey, and
+        would otherwise pass the match on, ring by ring, through the object's
+        unchanging inside until the object broke into pieces.
         """
-        assert self._background is not None
-        kernel = self._learning_kernel if learning else self._neighbour_kernel
-        # Moving pixels are 255 for the minimum and 0 for the maximum, so only
-        # still neighbours set the range.
+        assert self._background is not None and self._settled is not None
         kernels.absorb_ghosts(
             gray,
             mask,
             buffers.changing,
-            cv2.erode(buffers.lowest, kernel),
-            cv2.dilate(buffers.highest, kernel),
+            gray if learning else self._recent[0],
+            math.floor(threshold),
+            labels,
+            regions,
+            buffers.rounded_background,
+            self._settled,
+            LEARNING_REACH if learning else 1,
+            LEARNING_SETTLE_FRAMES if learning else self.settle_frames,
             round(threshold * self.weak_fraction),
             self._background,
         )
@@ -279,7 +326,9 @@ class AdaptiveBackground(MotionMethod):
             self._deviation = np.zeros_like(self._background)
         self._buffers = _Buffers(gray.shape)
         self._still_frames = np.zeros(gray.shape, np.uint16)
-        self._previous_gray = gray
+        self._settled = np.full(gray.shape, 255, np.uint8)
+        self._recent.clear()
+        self._recent.append(gray)
         self._previous_mask = np.zeros_like(gray)
         self._previous_raw = self._buffers.spare_raw
         return MotionResult(self._previous_mask, self._previous_mask, self.threshold)
@@ -300,15 +349,18 @@ class AdaptiveBackground(MotionMethod):
             return 1.0
         return frame_sum / background_sum
 
-    def _absorb_still_regions(self, gray: GrayImage, mask: Mask, changing: Mask) -> None:
+    def _absorb_still_regions(
+        self, gray: GrayImage, labels: np.ndarray, regions: int, changing: Mask, threshold: float
+    ) -> None:
         """Count, per motion region, frames without any change; absorb the stale ones."""
         assert self._still_frames is not None and self._background is not None
-        regions, labels = cv2.connectedComponents(mask, connectivity=8, ltype=cv2.CV_16U)
         kernels.age_still_regions(
             labels,
             regions,
             changing,
             gray,
+            self._recent[0],
+            math.floor(threshold),
             self.check_every,
             self.absorb_after,
             self._still_frames,
@@ -322,10 +374,11 @@ class AdaptiveBackground(MotionMethod):
         self._weight = None
         self._deviation = None
         self._buffers = None
-        self._previous_gray = None
+        self._recent.clear()
         self._previous_mask = None
         self._previous_raw = None
         self._still_frames = None
+        self._settled = None
         self._frame_index = 0
 
 

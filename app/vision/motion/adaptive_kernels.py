@@ -126,6 +126,7 @@ def learn(
     previous_raw: Mask,
     previous_mask: Mask,
     solid: Mask,
+    near_motion: Mask,
     background: FloatImage,
     alternate: FloatImage,
     weight: FloatImage,
@@ -137,11 +138,12 @@ def learn(
     learning_rate: float,
     mode_rate: float,
     deviation_rate: float,
+    near_motion_deviation_rate: float,
     clip_deviation: bool,
+    settled_in_out: np.ndarray,
     mask_out: Mask,
     changing_out: Mask,
-    lowest_in_out: GrayImage,
-    highest_in_out: GrayImage,
+    rounded_out: GrayImage,
 ) -> int:
     """The mask (hysteresis), then every model update one frame makes. Returns the
     number of moving pixels.
@@ -149,17 +151,19 @@ def learn(
     Per pixel: moving = difference above half its own threshold and within reach of
     a strong pixel (``grown_strong``); still pixels and flips of ``raw`` not inside
     a ``solid`` region teach the variability (clipped at the pixel's threshold
-    unless ``clip_deviation`` is off); a still pixel teaches its nearer mode; an
+    unless ``clip_deviation`` is off), still pixels ``near_motion`` that do not flip
+    at ``near_motion_deviation_rate``; a still pixel teaches its nearer mode; an
     alternate that matches right after a background frame gains weight, and a value
-    far from both modes replaces a weak alternate. Also writes what the ghost step
-    takes its neighbourhood extremes of: the rounded background, 255 where moving
-    (``lowest_in_out``) and 0 where moving (``highest_in_out``).
+    far from both modes replaces a weak alternate. Counts, per pixel, the frames it
+    has been still (``settled_in_out``, at most 255), and writes the background
+    rounded to grey levels (``rounded_out``), for the ghost step.
     """
     # Branch-free (selects, & and | rather than if, and, or) so the loop vectorises.
     level = np.int64(np.floor(threshold))
     lr = np.float32(learning_rate)
     mr = np.float32(mode_rate)
     dr = np.float32(deviation_rate)
+    near_rate = np.float32(near_motion_deviation_rate)
     seed = np.float32(seed_weight)
     full = np.float32(255.0)
     moving = 0
@@ -174,10 +178,12 @@ def learn(
             is_moving = (grown_strong[y, x] != 0) & (nearer > weak)
             still = ~is_moving
             # Variability: from still pixels and from flips of the plain threshold.
-            teach = still | ((raw[y, x] != previous_raw[y, x]) & (solid[y, x] == 0))
+            flip = (raw[y, x] != previous_raw[y, x]) & (solid[y, x] == 0)
+            calm = still & (near_motion[y, x] == 0)
+            rate = dr if calm | flip else near_rate
             sample = np.float32(min(nearer, limit) if clip_deviation else nearer)
             spread = deviation[y, x]
-            deviation[y, x] = spread + dr * (sample - spread) if teach else spread
+            deviation[y, x] = spread + rate * (sample - spread) if still | flip else spread
             main_difference = main[y, x]
             other_difference = alternate_difference[y, x]
             old_weight = weight[y, x]
@@ -205,8 +211,8 @@ def learn(
             changing_out[y, x] = 255 if change > level else 0
             rounded = min(np.int64(np.rint(model)), MAX_GREY)
             mask_out[y, x] = 255 if is_moving else 0
-            lowest_in_out[y, x] = 255 if is_moving else rounded
-            highest_in_out[y, x] = 0 if is_moving else rounded
+            settled_in_out[y, x] = min(np.int64(settled_in_out[y, x]) + 1, MAX_GREY) if still else 0
+            rounded_out[y, x] = rounded
             moving += 1 if is_moving else 0
     return moving
 
@@ -216,26 +222,65 @@ def absorb_ghosts(
     gray: GrayImage,
     mask: Mask,
     changing: Mask,
-    lowest: GrayImage,
-    highest: GrayImage,
+    lagged: GrayImage,
+    level: int,
+    labels: np.ndarray,
+    regions: int,
+    rounded: GrayImage,
+    settled: np.ndarray,
+    reach: int,
+    settle_frames: int,
     margin: int,
     background: FloatImage,
 ) -> None:
-    """Moving pixels that do not change and sit within ``margin`` of the range of their
-    still neighbours' background (``lowest``..``highest``) become background at once.
-    (``lowest`` - ``margin`` and ``highest`` + ``margin`` saturate as OpenCV's would;
-    a grey level is within 0..255 anyway.)"""
+    """Moving pixels that do not change and sit within ``margin`` of the range of the
+    background of the still pixels within ``reach`` (``rounded``) become background at
+    once, and start settling (``settled``) from 0.
+
+    In a motion region (``labels`` 1..regions-1) where some pixel changed this frame,
+    or by more than ``level`` since ``lagged`` (an object on the move, if slowly),
+    only neighbours still for ``settle_frames`` frames count: a pixel just absorbed
+    holds the object's own grey, and would pass its match on through the object's
+    unchanging inside.
+    """
+    on_the_move = np.zeros(regions, np.bool_)
     rows, cols = gray.shape
+    # Each row is visited from its first moving pixel to its last (rows without
+    # motion, most in most frames, not at all).
+    first = np.zeros(rows, np.int64)
+    end = np.zeros(rows, np.int64)
     for y in range(rows):
+        seen = np.uint8(0)
         for x in range(cols):
+            seen |= mask[y, x]
+        if seen:
+            while mask[y, first[y]] == 0:
+                first[y] += 1
+            end[y] = cols
+            while mask[y, end[y] - 1] == 0:
+                end[y] -= 1
+    for y in range(rows):
+        for x in range(first[y], end[y]):
+            if mask[y, x] != 0 and not on_the_move[labels[y, x]]:
+                moved = abs(np.int64(gray[y, x]) - np.int64(lagged[y, x])) > level
+                on_the_move[labels[y, x]] = (changing[y, x] != 0) | moved
+    for y in range(rows):
+        for x in range(first[y], end[y]):
+            if mask[y, x] == 0 or changing[y, x] != 0:
+                continue
+            least_age = settle_frames if on_the_move[labels[y, x]] else 0
+            lowest = np.int64(256)
+            highest = np.int64(-1)
+            for ny in range(max(0, y - reach), min(rows, y + reach + 1)):
+                for nx in range(max(0, x - reach), min(cols, x + reach + 1)):
+                    if mask[ny, nx] == 0 and settled[ny, nx] >= least_age:
+                        grey = np.int64(rounded[ny, nx])
+                        lowest = min(lowest, grey)
+                        highest = max(highest, grey)
             value = np.int64(gray[y, x])
-            ghost = (
-                (mask[y, x] != 0)
-                & (changing[y, x] == 0)
-                & (value >= np.int64(lowest[y, x]) - margin)
-                & (value <= np.int64(highest[y, x]) + margin)
-            )
-            background[y, x] = np.float32(value) if ghost else background[y, x]
+            if lowest - margin <= value <= highest + margin:
+                background[y, x] = np.float32(value)
+                settled[y, x] = 0
 
 
 @compiled
@@ -244,20 +289,25 @@ def age_still_regions(
     regions: int,
     changing: Mask,
     gray: GrayImage,
+    lagged: GrayImage,
+    level: int,
     step: int,
     absorb_after: int,
     still_frames: np.ndarray,
     background: FloatImage,
 ) -> None:
     """Count on, by ``step``, the frames of each motion region (``labels`` 1..regions-1)
-    in which none of its pixels changed; any other pixel restarts at 0. A region stale
-    for ``absorb_after`` frames becomes background."""
+    in which none of its pixels changed, this frame or by more than ``level`` since
+    ``lagged`` (the frame ``step`` frames before, the last count: an object creeping
+    a fraction of a pixel a frame is not stopped); any other pixel restarts at 0. A
+    region stale for ``absorb_after`` frames becomes background."""
     stale = np.ones(regions, np.bool_)
     stale[0] = False
     rows, cols = labels.shape
     for y in range(rows):
         for x in range(cols):
-            if changing[y, x]:
+            moved = abs(np.int64(gray[y, x]) - np.int64(lagged[y, x])) > level
+            if changing[y, x] != 0 or moved:
                 stale[labels[y, x]] = False
     for y in range(rows):
         for x in range(cols):

@@ -81,6 +81,10 @@ LEARNING_SETTLE_FRAMES = 5
 """``settle_frames`` while the scene is being learned: ghosts of what was in the first
 frame are expected then, and are eaten sooner."""
 
+GUARD_REACH = 3
+"""Pixels each way from a changing one within which the ghost step takes only settled
+neighbours."""
+
 NEAR_MOTION_DEVIATION_SHARE = 0.3
 """The share of ``deviation_rate`` at which still pixels next to motion teach it."""
 
@@ -94,6 +98,7 @@ class _Buffers:
         self.alternate_difference = np.empty(shape, np.uint8)
         self.limit = np.empty(shape, np.uint8)
         self.changing = np.empty(shape, np.uint8)
+        self.stirring = np.empty(shape, np.uint8)
         self.rounded_background = np.empty(shape, np.uint8)
         # Raw motion alternates between these two: one holds the previous frame's.
         self.raw = np.zeros(shape, np.uint8)
@@ -138,11 +143,15 @@ class AdaptiveBackground(MotionMethod):
         self.absorb_after = absorb_after
         self.check_every = check_every
         self.learning_frames = learning_frames
+        if not 0 <= settle_frames <= 255:
+            raise ValueError(f"settle_frames counts to 255 at most, not {settle_frames}")
         self.settle_frames = settle_frames
         self._grow_kernel = cv2.getStructuringElement(cv2.MORPH_ELLIPSE, (5, 5))
         self._neighbour_kernel = np.ones((3, 3), np.uint8)
         side = 2 * LEARNING_REACH + 1
         self._learning_kernel = np.ones((side, side), np.uint8)
+        guard = 2 * GUARD_REACH + 1
+        self._guard_kernel = np.ones((guard, guard), np.uint8)
         self._background: FloatImage | None = None
         self._alternate: FloatImage | None = None
         self._weight: FloatImage | None = None  # 0..255: how often the alternate recurs
@@ -251,25 +260,19 @@ class AdaptiveBackground(MotionMethod):
         )
         checking = self._frame_index % self.check_every == 0
         if moving or checking:
-            regions, labels = cv2.connectedComponents(mask, connectivity=8, ltype=cv2.CV_16U)
-            if moving:
-                self._erode_ghosts(gray, mask, labels, regions, buffers, threshold, learning)
-            if checking:
-                self._absorb_still_regions(gray, labels, regions, buffers.changing, threshold)
+            lagged = gray if learning else self._recent[0]
+            kernels.mark_stirring(gray, lagged, buffers.changing, threshold, buffers.stirring)
+        if moving:
+            self._erode_ghosts(gray, mask, buffers, threshold, learning)
+        if checking:
+            self._absorb_still_regions(gray, mask, buffers.stirring)
         self._recent.append(gray)
         self._previous_mask = mask
         self._previous_raw = raw
         return MotionResult(mask, difference, threshold)
 
     def _erode_ghosts(
-        self,
-        gray: GrayImage,
-        mask: Mask,
-        labels: np.ndarray,
-        regions: int,
-        buffers: _Buffers,
-        threshold: float,
-        learning: bool,
+        self, gray: GrayImage, mask: Mask, buffers: _Buffers, threshold: float, learning: bool
     ) -> None:
         """Absorb moving pixels that look like the background right next to them.
 
@@ -289,22 +292,21 @@ class AdaptiveBackground(MotionMethod):
         background from a 3x3 search and the ghost would stay for seconds.
         Afterwards the 3x3 search keeps the rims of real objects safe.
 
-        A ghost stands still, so it eats at one ring a frame. A region that
-        changes somewhere is an object on the move, and there only settled
-        neighbours count: where a camouflaged object matches the background at
-        a point of its rim, that point is absorbed with the object's grey, and
-        would otherwise pass the match on, ring by ring, through the object's
-        unchanging inside until the object broke into pieces.
+        A ghost stands still, so it is eaten at one ring a frame. Near pixels
+        that change (now, or over the last ``check_every`` frames) an object is
+        on the move, and there only settled neighbours count: where a
+        camouflaged object matches the background at a point of its rim, that
+        point is absorbed with the object's grey, and would otherwise pass the
+        match on, ring by ring, through the object's unchanging inside until
+        the object broke into pieces. The uncovered ghost of an object that
+        leaves is near it only at first.
         """
         assert self._background is not None and self._settled is not None
         kernels.absorb_ghosts(
             gray,
             mask,
             buffers.changing,
-            gray if learning else self._recent[0],
-            math.floor(threshold),
-            labels,
-            regions,
+            cv2.dilate(buffers.stirring, self._guard_kernel),
             buffers.rounded_background,
             self._settled,
             LEARNING_REACH if learning else 1,
@@ -327,8 +329,7 @@ class AdaptiveBackground(MotionMethod):
         self._buffers = _Buffers(gray.shape)
         self._still_frames = np.zeros(gray.shape, np.uint16)
         self._settled = np.full(gray.shape, 255, np.uint8)
-        self._recent.clear()
-        self._recent.append(gray)
+        self._recent = deque([gray], maxlen=self.check_every)
         self._previous_mask = np.zeros_like(gray)
         self._previous_raw = self._buffers.spare_raw
         return MotionResult(self._previous_mask, self._previous_mask, self.threshold)
@@ -349,18 +350,15 @@ class AdaptiveBackground(MotionMethod):
             return 1.0
         return frame_sum / background_sum
 
-    def _absorb_still_regions(
-        self, gray: GrayImage, labels: np.ndarray, regions: int, changing: Mask, threshold: float
-    ) -> None:
+    def _absorb_still_regions(self, gray: GrayImage, mask: Mask, stirring: Mask) -> None:
         """Count, per motion region, frames without any change; absorb the stale ones."""
         assert self._still_frames is not None and self._background is not None
+        regions, labels = cv2.connectedComponents(mask, connectivity=8, ltype=cv2.CV_16U)
         kernels.age_still_regions(
             labels,
             regions,
-            changing,
+            stirring,
             gray,
-            self._recent[0],
-            math.floor(threshold),
             self.check_every,
             self.absorb_after,
             self._still_frames,

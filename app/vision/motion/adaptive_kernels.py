@@ -155,8 +155,9 @@ def learn(
     at ``near_motion_deviation_rate``; a still pixel teaches its nearer mode; an
     alternate that matches right after a background frame gains weight, and a value
     far from both modes replaces a weak alternate. Counts, per pixel, the frames it
-    has been still (``settled_in_out``, at most 255), and writes the background
-    rounded to grey levels (``rounded_out``), for the ghost step.
+    has been still (``settled_in_out``, at most 255), and writes, for the ghost step,
+    the pixels that changed since the previous frame (``changing_out``) and the
+    background rounded to grey levels (``rounded_out``).
     """
     # Branch-free (selects, & and | rather than if, and, or) so the loop vectorises.
     level = np.int64(np.floor(threshold))
@@ -218,14 +219,25 @@ def learn(
 
 
 @compiled
+def mark_stirring(
+    gray: GrayImage, lagged: GrayImage, changing: Mask, threshold: float, stirring_out: Mask
+) -> None:
+    """Pixels that changed since the previous frame (``changing``) or since ``lagged``,
+    a few frames before: an object creeping a fraction of a pixel a frame stirs them."""
+    level = np.int64(np.floor(threshold))
+    rows, cols = gray.shape
+    for y in range(rows):
+        for x in range(cols):
+            drift = abs(np.int64(gray[y, x]) - np.int64(lagged[y, x]))
+            stirring_out[y, x] = 255 if (changing[y, x] != 0) | (drift > level) else 0
+
+
+@compiled
 def absorb_ghosts(
     gray: GrayImage,
     mask: Mask,
     changing: Mask,
-    lagged: GrayImage,
-    level: int,
-    labels: np.ndarray,
-    regions: int,
+    near_stirring: Mask,
     rounded: GrayImage,
     settled: np.ndarray,
     reach: int,
@@ -235,40 +247,24 @@ def absorb_ghosts(
 ) -> None:
     """Moving pixels that do not change and sit within ``margin`` of the range of the
     background of the still pixels within ``reach`` (``rounded``) become background at
-    once, and start settling (``settled``) from 0.
+    once.
 
-    In a motion region (``labels`` 1..regions-1) where some pixel changed this frame,
-    or by more than ``level`` since ``lagged`` (an object on the move, if slowly),
-    only neighbours still for ``settle_frames`` frames count: a pixel just absorbed
-    holds the object's own grey, and would pass its match on through the object's
-    unchanging inside.
+    Near pixels that are changing, now or slowly (``near_stirring``: an object on
+    the move), only neighbours that have been still for ``settle_frames`` frames
+    (``settled``) count: a pixel just absorbed holds the object's own grey, and
+    would pass its match on through the object's unchanging inside.
     """
-    on_the_move = np.zeros(regions, np.bool_)
     rows, cols = gray.shape
-    # Each row is visited from its first moving pixel to its last (rows without
-    # motion, most in most frames, not at all).
-    first = np.zeros(rows, np.int64)
-    end = np.zeros(rows, np.int64)
     for y in range(rows):
         seen = np.uint8(0)
         for x in range(cols):
             seen |= mask[y, x]
-        if seen:
-            while mask[y, first[y]] == 0:
-                first[y] += 1
-            end[y] = cols
-            while mask[y, end[y] - 1] == 0:
-                end[y] -= 1
-    for y in range(rows):
-        for x in range(first[y], end[y]):
-            if mask[y, x] != 0 and not on_the_move[labels[y, x]]:
-                moved = abs(np.int64(gray[y, x]) - np.int64(lagged[y, x])) > level
-                on_the_move[labels[y, x]] = (changing[y, x] != 0) | moved
-    for y in range(rows):
-        for x in range(first[y], end[y]):
+        if not seen:
+            continue  # Most rows, in most frames.
+        for x in range(cols):
             if mask[y, x] == 0 or changing[y, x] != 0:
                 continue
-            least_age = settle_frames if on_the_move[labels[y, x]] else 0
+            least_age = settle_frames if near_stirring[y, x] != 0 else 0
             lowest = np.int64(256)
             highest = np.int64(-1)
             for ny in range(max(0, y - reach), min(rows, y + reach + 1)):
@@ -280,34 +276,30 @@ def absorb_ghosts(
             value = np.int64(gray[y, x])
             if lowest - margin <= value <= highest + margin:
                 background[y, x] = np.float32(value)
-                settled[y, x] = 0
 
 
 @compiled
 def age_still_regions(
     labels: np.ndarray,
     regions: int,
-    changing: Mask,
+    stirring: Mask,
     gray: GrayImage,
-    lagged: GrayImage,
-    level: int,
     step: int,
     absorb_after: int,
     still_frames: np.ndarray,
     background: FloatImage,
 ) -> None:
     """Count on, by ``step``, the frames of each motion region (``labels`` 1..regions-1)
-    in which none of its pixels changed, this frame or by more than ``level`` since
-    ``lagged`` (the frame ``step`` frames before, the last count: an object creeping
-    a fraction of a pixel a frame is not stopped); any other pixel restarts at 0. A
-    region stale for ``absorb_after`` frames becomes background."""
+    in which none of its pixels is ``stirring`` (changed this frame, or since the
+    frame ``step`` frames before, the last count: an object creeping a fraction of a
+    pixel a frame is not stopped); any other pixel restarts at 0. A region stale for
+    ``absorb_after`` frames becomes background."""
     stale = np.ones(regions, np.bool_)
     stale[0] = False
     rows, cols = labels.shape
     for y in range(rows):
         for x in range(cols):
-            moved = abs(np.int64(gray[y, x]) - np.int64(lagged[y, x])) > level
-            if changing[y, x] != 0 or moved:
+            if stirring[y, x] != 0:
                 stale[labels[y, x]] = False
     for y in range(rows):
         for x in range(cols):

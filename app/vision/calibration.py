@@ -19,11 +19,16 @@ import cv2
 import numpy as np
 import numpy.typing as npt
 
-from app.vision.detections import Detection
+from app.vision.detections import BOTTOM, LEFT, RIGHT, Detection
 from app.vision.kinematics import fit_velocity, point_position, speed
 
 Point = tuple[float, float]
 STALE_AFTER_S = 10.0
+
+CUT_FOOTING = LEFT | RIGHT | BOTTOM
+"""Frame edges that, cutting an object, move the middle of its box's bottom edge off its
+foot: such sightings are left out of the ground speed (an object coming into view would
+seem to walk at half its speed), which is unknown (None) until one is whole."""
 
 
 @dataclass(frozen=True)
@@ -130,16 +135,19 @@ class GroundTracker:
                 out.append(det)
                 continue
             history = self._history.setdefault(det.track_id, _GroundHistory())
-            history.times.append(time_s)
-            history.points.append(ground)
+            if not det.edges & CUT_FOOTING:
+                history.times.append(time_s)
+                history.points.append(ground)
             window = [
                 (t, p)
                 for t, p in zip(history.times, history.points, strict=True)
                 if time_s - t <= self.window_s
             ]
-            velocity = fit_velocity([t for t, _ in window], [point_position(p) for _, p in window])
-            out.append(det.with_ground(ground, self.plane.range_m(ground), speed(velocity)))
+            positions = [point_position(p) for _, p in window]
+            velocity = fit_velocity([t for t, _ in window], positions) if window else None
+            ground_speed = speed(velocity) if velocity is not None else None
+            out.append(det.with_ground(ground, self.plane.range_m(ground), ground_speed))
         for track_id, history in list(self._history.items()):
-            if time_s - history.times[-1] > STALE_AFTER_S:
+            if not history.times or time_s - history.times[-1] > STALE_AFTER_S:
                 del self._history[track_id]
         return out

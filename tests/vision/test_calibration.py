@@ -3,7 +3,7 @@ import math
 import pytest
 
 from app.vision.calibration import GroundPlane, GroundTracker
-from app.vision.detections import Box, Detection
+from app.vision.detections import LEFT, Box, Detection
 
 
 def test_homography_from_four_points_maps_them_exactly():
@@ -47,3 +47,21 @@ def test_ground_speed_in_metres_per_second():
         out = tracker.update([d], i / 10)
     assert out[0].speed_m_s == pytest.approx(5.0, rel=0.02)
     assert out[0].range_m is not None
+
+
+def test_ground_speed_leaves_out_sightings_the_frame_edge_cuts():
+    # The same straight-down camera; an object 20 px wide comes in at the left edge,
+    # 5 px a frame at 10 fps (5 m/s): while the edge cuts it, the middle of its
+    # box's bottom moves at half that.
+    plane = GroundPlane.from_camera(10.0, 90.0, 90.0, (201, 201))
+    tracker = GroundTracker(plane)
+    speeds = []
+    for i in range(12):
+        right = 5.0 * (i + 1)
+        left = max(0.0, right - 20.0)
+        box = Box(round(left), 95, round(right - left), 10)
+        d = Detection(box, box.center, float(box.area), LEFT if left == 0 else 0, track_id=1)
+        (out,) = tracker.update([d], i / 10)
+        speeds.append(out.speed_m_s)
+    assert speeds[:4] == [None] * 4  # cut: no whole sighting yet
+    assert speeds[-1] == pytest.approx(5.0, rel=0.02)

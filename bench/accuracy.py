@@ -100,7 +100,10 @@ def load_set(data_dir: Path, real_set: RealSet) -> LoadedSet:
     video = open_input(data_dir / real_set.input)
     truth: Truth = load_truth(data_dir / real_set.truth, video.frame_numbers)
     labels = {index: mask for index in truth.frames if (mask := truth.mask(index)) is not None}
-    return LoadedSet(real_set.name, list(video.frames()), video.fps, labels, truth.roi)
+    frames = list(video.frames())
+    if video.skipped:  # Labels go by decode index: the frames after a gap would be misread.
+        raise SystemExit(f"{real_set.name}: frames {video.skipped} do not decode")
+    return LoadedSet(real_set.name, frames, video.fps, labels, truth.roi)
 
 
 def score_pixels(loaded: LoadedSet, method: str, warmup: int) -> PixelScore:

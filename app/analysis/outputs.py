@@ -66,15 +66,20 @@ class AnnotatedVideo:
     Frame for frame with the input: frame N of the video is decode index N, and a frame
     of the input that did not decode is the previous annotated frame again. Its frames
     are the input's size: FFmpeg's MJPEG encoder (4:2:0) would drop the last column and
-    row of an odd-sized frame, so those are written by OpenCV's own MJPEG writer.
+    row of an odd-sized frame, so those are written by OpenCV's own MJPEG writer, and
+    so is every frame where OpenCV was built without FFmpeg.
     """
 
     def __init__(self, path: Path, fps: float, size: tuple[int, int]) -> None:
         fourcc = cv2.VideoWriter.fourcc(*"MJPG")
         odd = size[0] % 2 or size[1] % 2
-        backend = cv2.CAP_OPENCV_MJPEG if odd else cv2.CAP_FFMPEG
-        self._writer = cv2.VideoWriter(str(path), backend, fourcc, fps, size)
-        if not self._writer.isOpened():
+        # FFmpeg's files are smaller at the same quality; OpenCV's writer is always built.
+        backends = [cv2.CAP_OPENCV_MJPEG] if odd else [cv2.CAP_FFMPEG, cv2.CAP_OPENCV_MJPEG]
+        for backend in backends:
+            self._writer = cv2.VideoWriter(str(path), backend, fourcc, fps, size)
+            if self._writer.isOpened():
+                break
+        else:
             raise OSError(f"cannot write video {path}")
         self._written = 0
         self._last: Image | None = None

@@ -25,13 +25,13 @@ DEFAULT_FPS = 25.0
 """The rate assumed for a folder of frames, or a video whose header gives none that is sane."""
 MAX_FPS = 1000.0
 MIN_FRAMES = 2
+"""Motion needs two frames: a still picture (a PNG named .avi) is not a video to analyse."""
 MAX_BAD_RUN = 100
 """Frames in a row that may fail to decode before a video is taken to end there (its end
 looks the same to the reader, and reading past it costs microseconds a frame)."""
 HEADER_SLACK = 0.01
 """A video read this much short of its header's frame count (at least one frame) is not
 reported as cut short: some containers' counts are estimates from the duration."""
-"""Motion needs two frames: a still picture (a PNG named .avi) is not a video to analyse."""
 SINGLE_PICTURE = (
     "{path} holds only one decodable frame (a picture, not a video?): motion needs at least two"
 )
@@ -249,12 +249,16 @@ def _open_folder(folder: Path, fps: float | None, max_pixels: int | None) -> Vid
         raise InputError(f"no image frames in folder: {folder}")
     if len(images) < MIN_FRAMES:
         raise InputError(f"{folder} holds only one image: motion needs at least two frames")
-    # The first picture that decodes sets the size; one that does not is a skipped frame.
-    first = next(
-        (f for f in (cv2.imread(str(p), cv2.IMREAD_COLOR) for p in images) if f is not None), None
-    )
+    # The first picture that decodes sets the size; one that does not is a skipped frame,
+    # but there must be a second that decodes.
+    decoded = (f for f in (cv2.imread(str(p), cv2.IMREAD_COLOR) for p in images) if f is not None)
+    first = next(decoded, None)
     if first is None:
         raise InputError(f"none of the {len(images)} images in {folder} decodes")
+    if next(decoded, None) is None:
+        raise InputError(
+            f"only one of the {len(images)} images in {folder} decodes: motion needs at least two"
+        )
     check_frame_size(first.shape[1], first.shape[0], max_pixels)
     return VideoInput(
         folder, float(fps or DEFAULT_FPS), (first.shape[1], first.shape[0]), images=images

@@ -93,6 +93,15 @@ def test_a_folder_of_images_none_of_which_decodes_is_refused(tmp_path):
         open_input(folder)
 
 
+def test_a_folder_where_only_one_image_decodes_is_refused_as_a_single_picture(tmp_path):
+    folder = tmp_path / "frames"
+    folder.mkdir()
+    cv2.imwrite(str(folder / "0.png"), SCENE.frame(0))
+    (folder / "1.png").write_bytes(b"garbage")
+    with pytest.raises(InputError, match="only one of the 2 images"):
+        open_input(folder)
+
+
 @pytest.mark.parametrize("fps", [0.0, -3.0, float("nan"), float("inf"), 5000.0])
 def test_a_frame_rate_out_of_range_is_refused(tmp_path, video, fps):
     with pytest.raises(InputError, match="frame rate"):

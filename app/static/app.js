@@ -78,16 +78,31 @@ function fmtDate(ts) {
    autoplay policy). Until then the sound button says "click to enable sound"; the first
    click or key press anywhere on the page unlocks it. */
 let audio = null;
+/* Whether the press under way (the last pointerdown or key press on the page) began on
+   the sound button while it asked to enable sound: the click that press ends in enables
+   sound and does not mute. Every new press decides afresh, so a Tab away from the button
+   or a press dragged off it leaves nothing behind for the next click. */
+let pressUnlocks = false;
 
 function audioReady() {
   return Boolean(audio && audio.state === "running");
 }
 
-function unlockAudio(event) {
+function soundLocked() {
+  return !state.muted && Boolean(window.AudioContext) && !audioReady();
+}
+
+function notePress(event) {
+  // Enter and Space are the keys that click a focused button.
+  const activates = event.type === "pointerdown" || event.key === "Enter" || event.key === " ";
+  pressUnlocks = activates && $("#mute").contains(event.target) && soundLocked();
+}
+
+document.addEventListener("pointerdown", notePress, { capture: true });
+document.addEventListener("keydown", notePress, { capture: true });
+
+function unlockAudio() {
   if (!window.AudioContext || audioReady()) return;
-  const button = $("#mute");
-  // A click on the button that asks to enable sound enables it, and does not mute.
-  if (event && button.contains(event.target) && !state.muted) button.dataset.unlocking = "1";
   if (!audio) {
     audio = new AudioContext();
     audio.addEventListener("statechange", renderMute);
@@ -126,7 +141,7 @@ function beep() {
 
 function renderMute() {
   const button = $("#mute");
-  const locked = !state.muted && Boolean(window.AudioContext) && !audioReady();
+  const locked = soundLocked();
   $(".label", button).textContent = state.muted ? "Sound off" : locked ? "Click to enable sound" : "Sound on";
   button.classList.toggle("locked", locked);
   button.setAttribute("aria-pressed", String(state.muted));
@@ -134,10 +149,9 @@ function renderMute() {
     : state.muted ? "alarm sound is off: click to turn it on" : "alarm sound is on: click to mute";
 }
 
-$("#mute").addEventListener("click", (event) => {
-  const button = event.currentTarget;
-  if (button.dataset.unlocking) {
-    delete button.dataset.unlocking;
+$("#mute").addEventListener("click", () => {
+  if (pressUnlocks) {
+    pressUnlocks = false;
     return;
   }
   state.muted = !state.muted;

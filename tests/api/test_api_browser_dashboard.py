@@ -211,6 +211,50 @@ def test_sound_waits_for_a_click_and_says_so(serve: Callable[..., Running], page
     assert "Sound off" in mute.inner_text() and mute.get_attribute("aria-pressed") == "true"
 
 
+def test_sound_unlocked_by_a_key_or_a_press_dragged_off_the_button_still_mutes_on_click(
+    serve: Callable[..., Running], page: Any
+) -> None:
+    server = serve()
+    sound_on = "() => document.getElementById('mute').textContent.includes('Sound on')"
+    mute = page.locator("#mute")
+    # Tab away from the focused button unlocks sound (a key press); the next click mutes.
+    page.goto(server.base + "/")
+    page.wait_for_selector("#ws-state.badge-live", timeout=10000)
+    assert "click to enable sound" in mute.inner_text().lower()
+    mute.focus()
+    page.keyboard.press("Tab")
+    page.wait_for_function(sound_on)
+    mute.click()
+    assert "Sound off" in mute.inner_text() and mute.get_attribute("aria-pressed") == "true"
+    mute.click()
+    assert "Sound on" in mute.inner_text()
+
+    # A press on the button released elsewhere unlocks sound without a click on it; the
+    # next click mutes.
+    page.evaluate("localStorage.removeItem('vigil.muted')")
+    page.reload()
+    page.wait_for_selector("#ws-state.badge-live", timeout=10000)
+    assert "click to enable sound" in mute.inner_text().lower()
+    box = mute.bounding_box()
+    page.mouse.move(box["x"] + box["width"] / 2, box["y"] + box["height"] / 2)
+    page.mouse.down()
+    page.mouse.move(box["x"] + box["width"] / 2, box["y"] + 300, steps=5)
+    page.mouse.up()
+    page.wait_for_function(sound_on)
+    mute.click()
+    assert "Sound off" in mute.inner_text() and mute.get_attribute("aria-pressed") == "true"
+
+    # Enter on the focused button that asks for sound enables it and does not mute.
+    page.evaluate("localStorage.removeItem('vigil.muted')")
+    page.reload()
+    page.wait_for_selector("#ws-state.badge-live", timeout=10000)
+    mute.focus()
+    page.keyboard.press("Enter")
+    page.wait_for_function(sound_on)
+    page.wait_for_timeout(300)
+    assert mute.get_attribute("aria-pressed") == "false"
+
+
 def test_dashboard_fits_a_phone(
     serve: Callable[..., Running], page: Any, motion_video: Path
 ) -> None:

@@ -32,6 +32,7 @@ const state = {
   knownCameraIds: new Set(),  // cameras that have events or snapshots, deleted ones too
   alarmItems: new Map(),   // event key -> alarm list entry
   analyses: new Map(),     // id -> element
+  newestEventTs: 0,        // the latest event start (server clock) the page has heard of
 };
 
 /* ---------- HTTP ---------- */
@@ -677,6 +678,16 @@ function alarmKey(cameraId, eventId, ts) {
   return eventId === null || eventId === undefined ? `c${cameraId}@${ts}` : `e${eventId}`;
 }
 
+/* "Clear list" hides, across reloads, the events that started up to the newest one the
+   page had heard of: a time on the server's clock, as the events' started_at are (the
+   browser's clock may be off by minutes or hours). The old key held the browser's clock. */
+const CLEARED_KEY = "vigil.alarmsClearedThrough";
+localStorage.removeItem("vigil.alarmsClearedAt");
+
+function noteEventTime(ts) {
+  if (Number.isFinite(ts) && ts > state.newestEventTs) state.newestEventTs = ts;
+}
+
 /* One entry per event: made by its first alarm (or from GET /api/events on page load),
    updated by the next alarms of the event and by its motion_end. */
 function alarmItem(key, cameraId, eventId, started) {
@@ -724,6 +735,7 @@ function onAlarm(message) {
   list.push(message.ts);
   state.alarmsAt.set(message.camera_id, list.slice(-50));
   noteCamera(message.camera_id);
+  noteEventTime(message.ts);
   const key = alarmKey(message.camera_id, message.event_id, message.ts);
   const { item, fresh } = alarmItem(key, message.camera_id, message.event_id, message.ts);
   item._alarms = (item._alarms || 0) + 1;
@@ -765,10 +777,13 @@ async function loadRecentAlarms() {
   } catch (_) {
     return;  // Shown on the next action; the live alarms still come.
   }
-  for (const event of events) noteCamera(event.camera_id);
+  for (const event of events) {
+    noteCamera(event.camera_id);
+    noteEventTime(event.started_at);
+  }
   renderCameraFilter();
-  const clearedAt = Number(localStorage.getItem("vigil.alarmsClearedAt") || 0);
-  const recent = events.filter((e) => e.started_at > clearedAt).slice(0, HISTORY_EVENTS);
+  const clearedThrough = Number(localStorage.getItem(CLEARED_KEY) || 0);
+  const recent = events.filter((e) => e.started_at > clearedThrough).slice(0, HISTORY_EVENTS);
   if (!recent.length) return;
   const pictures = new Map();  // event id -> {frame, difference}: its first snapshots
   try {
@@ -799,7 +814,8 @@ async function loadRecentAlarms() {
 $("#clear-alarms").addEventListener("click", () => {
   $("#alarm-list").innerHTML = "";
   state.alarmItems.clear();
-  localStorage.setItem("vigil.alarmsClearedAt", String(Date.now() / 1000));
+  const clearedThrough = Math.max(Number(localStorage.getItem(CLEARED_KEY) || 0), state.newestEventTs);
+  if (clearedThrough > 0) localStorage.setItem(CLEARED_KEY, String(clearedThrough));
 });
 
 /* ---------- WebSocket ---------- */

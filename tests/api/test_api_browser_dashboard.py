@@ -334,6 +334,56 @@ def test_alarm_list_one_entry_per_event_kept_across_reloads_and_deleted_cameras_
     assert page.locator("#alarm-list li").count() == 0
 
 
+SKEWED_CLOCK = """(() => {
+  // The browser's clock off by sessionStorage['test.skew'] seconds (kept across reloads).
+  const skew = Number(sessionStorage.getItem('test.skew') || 0) * 1000;
+  const Real = Date;
+  class Skewed extends Real {
+    constructor(...args) { if (args.length) super(...args); else super(Real.now() + skew); }
+    static now() { return Real.now() + skew; }
+  }
+  window.Date = Skewed;
+})();"""
+
+
+def test_clear_list_holds_across_reloads_with_the_browser_clock_an_hour_off(
+    serve: Callable[..., Running], page: Any
+) -> None:
+    server = serve()
+    db = server.server.config.app.state.services.database
+
+    def event(started_at: float) -> int:
+        return db.add_event(7, started_at, [[10, 20, 30, 40]], 1200.0)
+
+    def shown_events() -> list[str]:
+        page.reload()
+        page.wait_for_selector("#ws-state.badge-live", timeout=10000)
+        page.wait_for_timeout(1000)  # The recent events are listed.
+        return page.locator("#alarm-list li").evaluate_all("li => li.map(i => i.dataset.event)")
+
+    page.add_init_script(SKEWED_CLOCK)
+    page.goto(server.base + "/")
+    # The browser's clock is an hour behind the server's.
+    page.evaluate("sessionStorage.setItem('test.skew', '-3600')")
+    event(time.time() - 60)
+    event(time.time() - 30)
+    assert len(shown_events()) == 2
+    started = time.time()
+    live = event(started)
+    publish(server, alarm(7, live, started))
+    page.wait_for_function("() => document.querySelectorAll('#alarm-list li').length === 3")
+    page.click("#clear-alarms")
+    assert shown_events() == [], "cleared events came back"
+
+    # An hour ahead: a new event shows after a reload, also once the list was cleared.
+    page.evaluate("sessionStorage.setItem('test.skew', '3600')")
+    first = event(time.time())
+    assert shown_events() == [str(first)]
+    page.click("#clear-alarms")
+    second = event(time.time())
+    assert shown_events() == [str(second)], "a new event hidden"
+
+
 def test_many_cameras_stream_what_connections_allow_and_poll_the_rest_at_their_rate(
     serve: Callable[..., Running], page: Any, motion_video: Path
 ) -> None:

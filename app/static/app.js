@@ -265,7 +265,7 @@ function assignPictureModes() {
     if (card._mode === mode) return;
     card._mode = mode;
     card.classList.toggle("polled", mode === "poll");
-    if (card._started) restartPictures(card);
+    if (card._started) restartPictures(card, true);
   });
 }
 
@@ -544,9 +544,18 @@ function stopPictures(card, keep = false) {
   }
 }
 
-function restartPictures(card) {
+/* modeChanged: the picture goes from a stream to polled frames or back. The old src
+   goes at once: a polled picture is asked for only when canFetch allows (not while the
+   page is hidden or the server unreachable), and until then the old src would hold its
+   MJPEG connection open. Nothing is shown (no alt text) until the first new picture. */
+function restartPictures(card, modeChanged = false) {
   if (!card._started) return;
   stopPictures(card, true);
+  if (modeChanged) {
+    const img = $(".live", card);
+    img.removeAttribute("src");
+    img.classList.add("broken");
+  }
   startPictures(card, Number(card.dataset.id));
 }
 

@@ -414,6 +414,43 @@ def test_many_cameras_stream_what_connections_allow_and_poll_the_rest_at_their_r
     assert "shown/s" in page.locator(".card.polled .fps").first.inner_text()
 
 
+def test_a_stream_that_becomes_polled_while_the_page_is_hidden_closes_its_connection(
+    serve: Callable[..., Running], page: Any, motion_video: Path
+) -> None:
+    server = serve()
+    ids = [add_camera(server.base, f"file://{motion_video}", name=f"cam{i}") for i in range(4)]
+    page.goto(server.base + "/")
+    page.wait_for_function(
+        "() => [...document.querySelectorAll('.card img.live')]"
+        ".filter(i => i.naturalWidth > 0).length === 4",
+        timeout=30000,
+    )
+    last = page.locator(f'.card[data-id="{ids[3]}"] img.live')
+    stream = f"/api/cameras/{ids[3]}/stream.mjpg"
+    assert stream in (last.get_attribute("src") or "")
+    hub = server.server.config.app.state.services.cameras.get(ids[3]).hub
+    assert hub.watching["picture"] >= 1
+    # The tab goes to the background, and meanwhile an analysis is watched live: its
+    # stream takes a connection, so the last camera's picture becomes polled. No polled
+    # frame is asked for while the page is hidden, and its stream must not stay open.
+    page.evaluate(
+        "() => { Object.defineProperty(document, 'hidden', { configurable: true,"
+        " get: () => true }); setStatus(analysisPanel('a1', 'clip.avi'), 'a1', 'running'); }"
+    )
+    # The server sees the stream's viewer go (it checks every second).
+    wait_for(lambda: hub.watching["picture"] == 0, 5, "the stream to close")
+    assert last.get_attribute("src") is None
+    assert page.locator(".card:not(.polled) img.live[src*='stream.mjpg']").count() == 3
+    # Back in view: the last camera shows polled frames.
+    page.evaluate("() => { delete document.hidden; }")
+    page.wait_for_function(
+        f"() => {{ const i = document.querySelector('.card[data-id=\"{ids[3]}\"] img.live');"
+        " return i.src.includes('/frame.jpg') && i.naturalWidth > 0"
+        " && !i.classList.contains('broken'); }",
+        timeout=10000,
+    )
+
+
 def test_a_camera_that_goes_away_asks_for_no_pictures_meanwhile(
     serve: Callable[..., Running], page: Any
 ) -> None:

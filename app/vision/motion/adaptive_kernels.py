@@ -261,14 +261,21 @@ def absorb_ghosts(
             seen |= mask[y, x]
         if not seen:
             continue  # Most rows, in most frames.
-        for x in range(cols):
+        first, end = 0, cols  # From the row's first moving pixel to its last.
+        while mask[y, first] == 0:
+            first += 1
+        while mask[y, end - 1] == 0:
+            end -= 1
+        top, bottom = max(0, y - reach), min(rows, y + reach + 1)
+        for x in range(first, end):
             if mask[y, x] == 0 or changing[y, x] != 0:
                 continue
             least_age = settle_frames if near_stirring[y, x] != 0 else 0
+            left, right = max(0, x - reach), min(cols, x + reach + 1)
             lowest = np.int64(256)
             highest = np.int64(-1)
-            for ny in range(max(0, y - reach), min(rows, y + reach + 1)):
-                for nx in range(max(0, x - reach), min(cols, x + reach + 1)):
+            for ny in range(top, bottom):
+                for nx in range(left, right):
                     if mask[ny, nx] == 0 and settled[ny, nx] >= least_age:
                         grey = np.int64(rounded[ny, nx])
                         lowest = min(lowest, grey)

@@ -8,25 +8,23 @@ cameras, a camera that goes away.
 from __future__ import annotations
 
 import socket
-import threading
 import time
 from collections import Counter
-from collections.abc import Callable, Iterator
-from contextlib import contextmanager
+from collections.abc import Callable
+from contextlib import AbstractContextManager
 from pathlib import Path
 from typing import Any
 
 import httpx
 import pytest
-import uvicorn
 
-from app.api.app import create_app
 from app.core.config import Settings
 from tests.api.vigil_livekit import (
     MjpegCamera,
     Running,
     add_camera,
     live_settings,
+    running_server,
     wait_for,
 )
 
@@ -57,31 +55,9 @@ def pictures_move(page: Any, selector: str = ".card img.live", seconds: float = 
     return [len(known) > 1 for known in seen]
 
 
-@contextmanager
-def server_on(port: int, settings: Settings) -> Iterator[Running]:
+def server_on(port: int, settings: Settings) -> AbstractContextManager[Running]:
     """A real uvicorn on 127.0.0.1:``port`` (the same port again after a stop)."""
-    sock = socket.socket(socket.AF_INET, socket.SOCK_STREAM)
-    sock.setsockopt(socket.SOL_SOCKET, socket.SO_REUSEADDR, 1)
-    sock.bind(("127.0.0.1", port))
-    config = uvicorn.Config(
-        create_app(settings),
-        ws="websockets-sansio",
-        log_level="warning",
-        timeout_graceful_shutdown=1,
-        lifespan="on",
-    )
-    server = uvicorn.Server(config)
-    thread = threading.Thread(target=server.run, kwargs={"sockets": [sock]}, daemon=True)
-    thread.start()
-    running = Running(f"http://127.0.0.1:{port}", f"ws://127.0.0.1:{port}/ws", server, thread)
-    try:
-        wait_for(lambda: server.started or not thread.is_alive(), 20, "uvicorn to start")
-        assert server.started, "uvicorn failed to start"
-        yield running
-    finally:
-        if thread.is_alive():
-            running.stop()
-        sock.close()
+    return running_server(settings, port, graceful_s=1)
 
 
 def publish(server: Running, message: dict[str, Any]) -> None:

@@ -68,10 +68,12 @@ def write_video(path: Path, frames: int = 45, value: int = 230) -> Path:
     return path
 
 
-def free_socket() -> socket.socket:
+def free_socket(port: int = 0) -> socket.socket:
+    """A socket bound on 127.0.0.1 at ``port`` (0: a free one; a port just used is
+    reusable at once)."""
     sock = socket.socket(socket.AF_INET, socket.SOCK_STREAM)
     sock.setsockopt(socket.SOL_SOCKET, socket.SO_REUSEADDR, 1)
-    sock.bind(("127.0.0.1", 0))
+    sock.bind(("127.0.0.1", port))
     return sock
 
 
@@ -177,15 +179,15 @@ class Running:
 
 
 @contextmanager
-def running_server(settings: Settings) -> Iterator[Running]:
-    """A real uvicorn on 127.0.0.1 (a free port), as ``vigil serve`` runs it."""
-    sock = free_socket()
+def running_server(settings: Settings, port: int = 0, graceful_s: int = 3) -> Iterator[Running]:
+    """A real uvicorn on 127.0.0.1 at ``port`` (0: a free one), as ``vigil serve`` runs it."""
+    sock = free_socket(port)
     port = sock.getsockname()[1]
     config = uvicorn.Config(
         create_app(settings),
         ws="websockets-sansio",
         log_level="warning",
-        timeout_graceful_shutdown=3,
+        timeout_graceful_shutdown=graceful_s,
         lifespan="on",
     )
     server = uvicorn.Server(config)

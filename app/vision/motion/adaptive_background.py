@@ -221,6 +221,8 @@ class AdaptiveBackground(MotionMethod):
         # While the scene is learned, a flip deep inside a solid off-background region
         # is an object stepping in or a ghost uncovered, not a sway: it does not teach.
         solid = cv2.erode(raw, self._learning_kernel) if learning else buffers.nothing
+        # Still pixels next to the last frame's motion may be an object's unseen parts:
+        # they teach the variability slowly (NEAR_MOTION_DEVIATION_SHARE).
         near_motion = (
             cv2.dilate(self._previous_mask, self._learning_kernel)
             if self._previous_mask.any() and not learning

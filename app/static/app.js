@@ -198,7 +198,6 @@ function layoutToasts() {
   const hidden = toasts.length - TOAST_MAX;
   more.hidden = hidden <= 0;
   $(".count", more).textContent = hidden > 0 ? `+${hidden} more` : "";
-  $("#toasts").append(more);
 }
 
 $("#toasts-dismiss").addEventListener("click", () => {
@@ -691,7 +690,6 @@ function alarmKey(cameraId, eventId, ts) {
    page had heard of: a time on the server's clock, as the events' started_at are (the
    browser's clock may be off by minutes or hours). The old key held the browser's clock. */
 const CLEARED_KEY = "vigil.alarmsClearedThrough";
-localStorage.removeItem("vigil.alarmsClearedAt");
 
 function noteEventTime(ts) {
   if (Number.isFinite(ts) && ts > state.newestEventTs) state.newestEventTs = ts;
@@ -926,7 +924,7 @@ function analysisPanel(id, filename) {
       dismissed.push(key);
       localStorage.setItem("vigil.dismissedAnalyses", JSON.stringify(dismissed.slice(-200)));
     }
-    for (const [k, el] of state.analyses) if (el === panel) state.analyses.delete(k);
+    state.analyses.delete(panel.dataset.id);
     panel.remove();
     assignPictureModes();
   });
@@ -965,7 +963,7 @@ $("#upload").addEventListener("submit", (event) => {
       return;
     }
     bar.value = 1;
-    for (const [key, el] of state.analyses) if (el === pending) state.analyses.delete(key);
+    state.analyses.delete(pending.dataset.id);
     state.analyses.set(body.id, pending);
     pending.dataset.id = body.id;
     refreshAnalysis(body.id);
@@ -1077,7 +1075,7 @@ function renderCameraFilter() {
   const deleted = Array.from(state.knownCameraIds).filter((id) => !state.cameras.has(id)).sort((a, b) => a - b);
   select.innerHTML = '<option value="">all</option>' + Array.from(state.cameras.values())
     .map((c) => `<option value="${c.id}">${escapeHtml(c.name)}</option>`).join("")
-    + (state.camerasLoaded ? deleted.map((id) => `<option value="${id}">camera ${id} (deleted)</option>`).join("") : "");
+    + (state.camerasLoaded ? deleted.map((id) => `<option value="${id}">${escapeHtml(cameraName(id))}</option>`).join("") : "");
   select.value = current;
   if (select.value !== current) select.value = "";
 }

@@ -7,22 +7,20 @@ cameras, a camera that goes away.
 
 from __future__ import annotations
 
-import socket
 import time
 from collections import Counter
 from collections.abc import Callable
-from contextlib import AbstractContextManager
 from pathlib import Path
 from typing import Any
 
 import httpx
 import pytest
 
-from app.core.config import Settings
 from tests.api.vigil_livekit import (
     MjpegCamera,
     Running,
     add_camera,
+    free_socket,
     live_settings,
     running_server,
     wait_for,
@@ -55,11 +53,6 @@ def pictures_move(page: Any, selector: str = ".card img.live", seconds: float = 
     return [len(known) > 1 for known in seen]
 
 
-def server_on(port: int, settings: Settings) -> AbstractContextManager[Running]:
-    """A real uvicorn on 127.0.0.1:``port`` (the same port again after a stop)."""
-    return running_server(settings, port, graceful_s=1)
-
-
 def publish(server: Running, message: dict[str, Any]) -> None:
     """A message on the server's /ws, as a camera worker sends it."""
     server.server.config.app.state.services.bus.publish(message)
@@ -84,14 +77,13 @@ def alarm(camera_id: int, event_id: int, ts: float, name: str = "yard") -> dict[
 def test_pictures_come_back_after_a_server_restart_and_cards_say_when_it_is_away(
     page: Any, motion_video: Path, tmp_path: Path
 ) -> None:
-    probe = socket.socket()
-    probe.bind(("127.0.0.1", 0))
+    probe = free_socket()
     port = probe.getsockname()[1]
     probe.close()
     settings = live_settings(tmp_path / "data")
     errors: list[str] = []
     page.on("pageerror", lambda error: errors.append(str(error)))
-    with server_on(port, settings) as server:
+    with running_server(settings, port, graceful_s=1) as server:
         add_camera(server.base, f"file://{motion_video}", name="lane")
         add_camera(server.base, f"file://{motion_video}", name="road")
         page.goto(server.base + "/")
@@ -109,7 +101,7 @@ def test_pictures_come_back_after_a_server_restart_and_cards_say_when_it_is_away
     )
     assert page.locator(".card .fps").all_inner_texts() == ["", ""]
     assert page.locator(".card.stale").count() == 2
-    with server_on(port, settings):
+    with running_server(settings, port, graceful_s=1):
         page.wait_for_function(
             "() => [...document.querySelectorAll('.card .state')]"
             ".every(b => b.textContent === 'live')",
@@ -140,9 +132,11 @@ def test_alarm_toasts_are_capped_and_repeats_of_an_event_merge(
     assert column < 450, column
     # Between the toasts, clicks reach the page below.
     assert page.evaluate(
-        "(() => { const t = document.getElementById('toasts').getBoundingClientRect();"
-        " const e = document.elementFromPoint(t.left + t.width / 2, t.bottom + 40);"
-        " return !document.getElementById('toasts').contains(e); })()"
+        "(() => { const [a, b] = [...document.querySelectorAll('#toasts .toast')]"
+        ".filter(t => !t.hidden).map(t => t.getBoundingClientRect());"
+        " if (!(b.top - a.bottom > 2)) return false;"
+        " const e = document.elementFromPoint(a.left + a.width / 2, (a.bottom + b.top) / 2);"
+        " return !document.querySelector('#toasts').contains(e); })()"
     )
 
     # Five more alarms of event 3: one toast, updated, on top; one list entry.
@@ -304,7 +298,8 @@ def test_alarm_list_one_entry_per_event_kept_across_reloads_and_deleted_cameras_
 
     # "Clear list" holds across a reload.
     page.click("#clear-alarms")
-    page.reload()
+    with page.expect_response(lambda r: "/api/events?" in r.url):
+        page.reload()
     page.wait_for_selector("#ws-state.badge-live", timeout=10000)
     page.wait_for_timeout(1000)
     assert page.locator("#alarm-list li").count() == 0
@@ -332,7 +327,8 @@ def test_clear_list_holds_across_reloads_with_the_browser_clock_an_hour_off(
         return db.add_event(7, started_at, [[10, 20, 30, 40]], 1200.0)
 
     def shown_events() -> list[str]:
-        page.reload()
+        with page.expect_response(lambda r: "/api/events?" in r.url):
+            page.reload()
         page.wait_for_selector("#ws-state.badge-live", timeout=10000)
         page.wait_for_timeout(1000)  # The recent events are listed.
         return page.locator("#alarm-list li").evaluate_all("li => li.map(i => i.dataset.event)")

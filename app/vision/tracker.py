@@ -48,7 +48,6 @@ class Track:
     """The public id, given when the track is confirmed, so ids count up without gaps."""
     hits: int = 1
     missed: int = 0
-    total_distance_px: float = 0.0
     times: deque[float] = field(default_factory=lambda: deque(maxlen=12))
     positions: deque[Position] = field(default_factory=lambda: deque(maxlen=12))
     trail: deque[Point] = field(default_factory=lambda: deque(maxlen=64))
@@ -263,7 +262,6 @@ class Tracker:
         track.hits += 1
         track.missed = 0
         track.box = detection.box
-        track.total_distance_px += step
         track.times.append(time_s)
         track.positions.append(position)
         track.trail.append(detection.centroid)

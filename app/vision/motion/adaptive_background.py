@@ -260,13 +260,12 @@ class AdaptiveBackground(MotionMethod):
             buffers.changing,
             buffers.rounded_background,
         )
-        checking = self._frame_index % self.check_every == 0
-        if moving or checking:
+        if moving:
+            # Only motion regions read it (a quiet frame's stale count has none).
             lagged = gray if learning else self._recent[0]
             kernels.mark_stirring(gray, lagged, buffers.changing, threshold, buffers.stirring)
-        if moving:
             self._erode_ghosts(gray, mask, buffers, threshold, learning)
-        if checking:
+        if self._frame_index % self.check_every == 0:
             self._absorb_still_regions(gray, mask, buffers.stirring)
         self._recent.append(gray)
         self._previous_mask = mask

@@ -55,10 +55,10 @@ def _non_negative(value: str) -> float:
 
 
 def _fps(value: str) -> float:
-    from app.sources.files import MAX_FPS
+    from app.sources.files import MAX_FPS, valid_fps
 
     number = _number(value)
-    if not 0 < number <= MAX_FPS:
+    if not valid_fps(number):
         raise argparse.ArgumentTypeError(
             f"must be a positive number of frames per second, at most {MAX_FPS:g}, not {value}"
         )

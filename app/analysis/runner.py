@@ -171,14 +171,13 @@ class _Analysis:
                 if self.first_frame is None:
                     self.first_frame = frame
                 # A skipped frame keeps its decode index: the frames after it keep their times.
-                time_s = index / self.source.fps
-                result = self.pipeline.process(frame, time_s)
+                result = self.pipeline.process(frame, index=index)
                 annotated = self.annotator(frame, result.detections, self.pipeline.tracker.trails())
                 video.write(annotated, index)
                 if self.on_frame is not None:
                     self.on_frame(annotated)
-                tracks_csv.write(index, time_s, result.detections)
-                self._record(index, result, annotated)
+                tracks_csv.write(index, result.time_s, result.detections)
+                self._record(result, annotated)
                 frames += 1
                 if self.progress:
                     self.progress(index + 1, self.source.expected_frames)
@@ -198,8 +197,8 @@ class _Analysis:
         write_report_html(self.out / "report.html", report, self._html_extras())
         return report
 
-    def _record(self, index: int, result: FrameResult, annotated: Image) -> None:
-        time_s = result.time_s
+    def _record(self, result: FrameResult, annotated: Image) -> None:
+        index, time_s = result.index, result.time_s
         if self.options.masks or self.scoring is not None:
             mask_full = to_size(result.mask, self.source.size)
             if self.options.masks:
@@ -231,18 +230,18 @@ class _Analysis:
             summary.add(index, time_s, d)
         update = self.alarms.update(index, time_s, result.detections)
         if update.started is not None:
-            self._snapshot(update.started, index, annotated, result)
+            self._snapshot(update.started, annotated, result)
         if update.ended is not None:
             self._close_event(update.ended)
 
-    def _snapshot(
-        self, event: MotionEvent, index: int, annotated: Image, result: FrameResult
-    ) -> None:
+    def _snapshot(self, event: MotionEvent, annotated: Image, result: FrameResult) -> None:
         name = f"event-{event.id:04d}.jpg"
         write_image(self.out / "snapshots" / name, annotated)
         difference = difference_picture(result.difference, self.source.size)
         write_image(self.out / "differences" / name, difference)
-        self.key_frames.append({"event": event.id, "frame": index, "snapshot": f"snapshots/{name}"})
+        self.key_frames.append(
+            {"event": event.id, "frame": result.index, "snapshot": f"snapshots/{name}"}
+        )
 
     def _close_event(self, event: MotionEvent) -> None:
         record = event.as_dict()

@@ -49,10 +49,15 @@ def frame_number(path: Path) -> int | None:
     return int(match.group(1)) if match else None
 
 
+def valid_fps(rate: float) -> bool:
+    """A frame rate Vigil works with: a number in (0, MAX_FPS]."""
+    return math.isfinite(rate) and 0 < rate <= MAX_FPS
+
+
 def frame_rate(capture: cv2.VideoCapture) -> float:
     """The capture's frame rate, or DEFAULT_FPS when the header's is missing or absurd."""
     rate = capture.get(cv2.CAP_PROP_FPS)
-    return float(rate) if math.isfinite(rate) and 0 < rate <= MAX_FPS else DEFAULT_FPS
+    return float(rate) if valid_fps(rate) else DEFAULT_FPS
 
 
 class InputError(ValueError):
@@ -162,7 +167,7 @@ class VideoInput:
 
 def check_fps(fps: float | None) -> None:
     """Refuse a frame rate that is not a number in (0, MAX_FPS]."""
-    if fps is not None and not (math.isfinite(fps) and 0 < fps <= MAX_FPS):
+    if fps is not None and not valid_fps(fps):
         raise InputError(f"the frame rate must be more than 0 and at most {MAX_FPS:g}, not {fps}")
 
 
@@ -228,7 +233,7 @@ def open_input(path: Path, fps: float | None = None, max_pixels: int | None = No
     )
 
 
-def _images(folder: Path) -> list[Path]:
+def _list_images(folder: Path) -> list[Path]:
     """The folder's image files, sorted by name."""
     try:
         return sorted(p for p in folder.iterdir() if p.suffix.lower() in IMAGE_SUFFIXES)
@@ -237,14 +242,14 @@ def _images(folder: Path) -> list[Path]:
 
 
 def _open_folder(folder: Path, fps: float | None, max_pixels: int | None) -> VideoInput:
-    images = _images(folder)
+    images = _list_images(folder)
     sequence = folder / "input"
     if sequence.is_dir() and (
         len(images) < MIN_FRAMES or any((folder / name).exists() for name in CDNET_MARKERS)
     ):
         # A data set's sequence (CDnet; Wallflower, whose folder holds one label picture):
         # its frames, not its ROI or label pictures.
-        folder, images = sequence, _images(sequence)
+        folder, images = sequence, _list_images(sequence)
     if not images:
         raise InputError(f"no image frames in folder: {folder}")
     if len(images) < MIN_FRAMES:

@@ -113,11 +113,19 @@ class Pipeline:
         self.config = replace(self.config, method=name)
 
     def process(
-        self, frame: Image, time_s: float | None = None, frame_width: int | None = None
+        self,
+        frame: Image,
+        time_s: float | None = None,
+        frame_width: int | None = None,
+        index: int | None = None,
     ) -> FrameResult:
         """One frame, in order. ``frame_width``: the width of the original picture when
         ``frame`` is a reduced copy of it (decoded at reduced scale); boxes, areas and
-        speeds then come back in the original's pixels."""
+        speeds then come back in the original's pixels. ``index``: the frame's decode
+        index where frames before it did not decode (default: the one after the last);
+        its time is then index / fps unless ``time_s`` says otherwise."""
+        if index is not None:
+            self._index = index
         index = self._index
         self._index += 1
         if time_s is None:

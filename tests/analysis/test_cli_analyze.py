@@ -39,11 +39,6 @@ def vigil(*args: str | Path, cwd: Path = ROOT) -> subprocess.CompletedProcess[st
 
 
 @pytest.fixture(scope="module")
-def walker_video(tmp_path_factory) -> Path:
-    return write_scene_video(WALKER, tmp_path_factory.mktemp("video") / "walker.avi")
-
-
-@pytest.fixture(scope="module")
 def box_truth(tmp_path_factory) -> Path:
     frames = {str(i): [t.box.as_list() for t in WALKER.truth(i)] for i in range(WALKER.frames)}
     path = tmp_path_factory.mktemp("truth") / "truth.json"

@@ -13,13 +13,8 @@ import pytest
 from app import cli
 from app.sources.synthetic import MovingObject, Scene
 from tests.analysis.test_cli_analyze import WALKER, vigil
-from tests.conftest import decode_all, write_scene_video
+from tests.conftest import decode_all
 from tests.sources.damaged_video import cut_after, garble_frames
-
-
-@pytest.fixture(scope="module")
-def walker_video(tmp_path_factory) -> Path:
-    return write_scene_video(WALKER, tmp_path_factory.mktemp("video") / "walker.avi")
 
 
 def _report(out: Path) -> dict:

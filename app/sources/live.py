@@ -176,7 +176,11 @@ def without_password(text: str) -> str:
 
 def has_masked_password(text: str) -> bool:
     """Whether a password in ``text`` reads ``MASK``: a source copied as the API shows it."""
-    return any(password == MASK for _, password in _passwords(text))
+    return bool(_masked_places(text))
+
+
+def _masked_places(text: str) -> set[str]:
+    return {place for place, password in _passwords(text) if password == MASK}
 
 
 def with_stored_password(source: str, stored: str) -> str:
@@ -197,12 +201,12 @@ def with_stored_password(source: str, stored: str) -> str:
 
     A password that really is ``***`` is written percent-encoded: ``%2A%2A%2A``.
     """
-    if source in (stored, without_password(stored)):
+    shown = without_password(stored)
+    if source in (stored, shown):
         return stored
-    masked = {place for place, password in _passwords(source) if password == MASK}
+    masked = _masked_places(source)
     if not masked:
         return source
-    shown = without_password(stored)
     if _endpoint(source) != _endpoint(stored):
         raise ValueError(
             f"{MASK} stands for the stored password, which goes only to the scheme, user, "
@@ -432,7 +436,8 @@ class CaptureSource:
         ]
         started = time.monotonic()
         capture = cv2.VideoCapture(url, cv2.CAP_FFMPEG, params)
-        host = urlparse(url).hostname or without_password(url)
+        parsed = urlparse(url)
+        host = parsed.hostname or without_password(url)
         if not capture.isOpened():
             capture.release()
             # A camera that let the open time out would let a second question time out too.
@@ -440,7 +445,7 @@ class CaptureSource:
             why = ": no answer" if timed_out else why_not_open(url, open_timeout_ms)
             raise SourceError(f"cannot open stream from {host}{why}")
         packets = jpeg_packets(capture)
-        return cls(capture, f"{urlparse(url).scheme} stream from {host}", packets)
+        return cls(capture, f"{parsed.scheme} stream from {host}", packets)
 
     def read(self) -> SourceFrame:
         ok, frame = self._capture.read()

@@ -163,18 +163,19 @@ class CameraWorker:
         Source failures are the camera's: shown, retried with backoff. Any other
         exception is a fault of the worker itself and reaches ``_worker_failed``.
         """
+        longer = min(backoff * 2, self.settings.reconnect_max_s)
         try:
             spec = parse_source(self.source_text)
             source = open_source(spec, self.settings.open_timeout_ms, self.settings.read_timeout_ms)
         except (SourceError, ValueError) as exc:
             self._failed(str(exc), backoff)
-            return min(backoff * 2, self.settings.reconnect_max_s)
+            return longer
         except (cv2.error, OSError) as exc:
             log.exception(
                 "camera %s: cannot open %s", self.camera_id, without_password(self.source_text)
             )
             self._failed(f"cannot open source: {exc}", backoff)
-            return min(backoff * 2, self.settings.reconnect_max_s)
+            return longer
         self._source = source
         try:
             self._stream(source)
@@ -183,7 +184,7 @@ class CameraWorker:
             self._deactivate(time.time())
             if self.state != "live":  # Nothing came that decodes: it did not really open.
                 self._failed(str(exc), backoff)
-                return min(backoff * 2, self.settings.reconnect_max_s)
+                return longer
             self._lost(str(exc), self.settings.reconnect_min_s)
         finally:
             self._source = None

@@ -8,8 +8,8 @@ from typing import Any
 
 from app.sources.synthetic import MovingObject, Scene
 from app.storage import Database
-from app.workers.camera import CameraWorker
-from tests.api.vigil_livekit import MjpegCamera, wait_for, write_video
+from app.workers.camera import PLAIN_SLEEP_S, CameraWorker
+from tests.api.vigil_livekit import FPS, MjpegCamera, wait_for, write_video
 from tests.conftest import write_scene_video
 from tests.workers.conftest import make_worker
 
@@ -161,6 +161,7 @@ def test_a_stop_between_frames_handles_no_further_frame(
 ) -> None:
     """Stopped while it waits for its next frame (most of a frame period), a camera
     handles none after: no frame, and so no alarm or snapshot, once it was told to stop."""
+    assert 1 / FPS <= PLAIN_SLEEP_S  # The wait between frames is the plain sleep's.
     worker = make_worker(parts, str(write_video(tmp_path / "v.avi")), active=True)
     worker.start()
     try:

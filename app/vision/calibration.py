@@ -11,16 +11,15 @@ view (a pinhole camera with no roll).
 from __future__ import annotations
 
 import math
-from collections import deque
 from collections.abc import Sequence
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 
 import cv2
 import numpy as np
 import numpy.typing as npt
 
 from app.vision.detections import BOTTOM, LEFT, RIGHT, Detection
-from app.vision.kinematics import fit_velocity, point_position, speed
+from app.vision.kinematics import VelocityWindow, point_position, speed
 
 Point = tuple[float, float]
 STALE_AFTER_S = 10.0
@@ -113,19 +112,13 @@ def _has_collinear_triple(points: npt.NDArray[np.float64]) -> bool:
     return False
 
 
-@dataclass
-class _GroundHistory:
-    times: deque[float] = field(default_factory=lambda: deque(maxlen=12))
-    points: deque[Point] = field(default_factory=lambda: deque(maxlen=12))
-
-
 class GroundTracker:
     """Adds ground position, range and smoothed ground speed to tracked detections."""
 
     def __init__(self, plane: GroundPlane, window_s: float = 0.6) -> None:
         self.plane = plane
         self.window_s = window_s
-        self._history: dict[int, _GroundHistory] = {}
+        self._history: dict[int, VelocityWindow] = {}
 
     def update(self, detections: list[Detection], time_s: float) -> list[Detection]:
         out = []
@@ -134,20 +127,15 @@ class GroundTracker:
             if ground is None or det.track_id is None:
                 out.append(det)
                 continue
-            history = self._history.setdefault(det.track_id, _GroundHistory())
+            history = self._history.get(det.track_id)
+            if history is None:
+                history = self._history[det.track_id] = VelocityWindow(self.window_s)
             if not det.edges & CUT_FOOTING:
-                history.times.append(time_s)
-                history.points.append(ground)
-            window = [
-                (t, p)
-                for t, p in zip(history.times, history.points, strict=True)
-                if time_s - t <= self.window_s
-            ]
-            positions = [point_position(p) for _, p in window]
-            velocity = fit_velocity([t for t, _ in window], positions) if window else None
-            ground_speed = speed(velocity) if velocity is not None else None
+                history.add(time_s, point_position(ground))
+            velocity = history.velocity(time_s)  # Forgets what is older than the window.
+            ground_speed = speed(velocity) if history else None
             out.append(det.with_ground(ground, self.plane.range_m(ground), ground_speed))
         for track_id, history in list(self._history.items()):
-            if not history.times or time_s - history.times[-1] > STALE_AFTER_S:
+            if not history or time_s - history.last_time > STALE_AFTER_S:
                 del self._history[track_id]
         return out

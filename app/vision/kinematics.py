@@ -12,7 +12,8 @@ the whole side when one is.
 from __future__ import annotations
 
 import math
-from collections.abc import Sequence
+from collections import deque
+from dataclasses import dataclass, field
 from typing import NamedTuple
 
 from app.vision.detections import BOTTOM, LEFT, RIGHT, TOP, Detection
@@ -79,8 +80,9 @@ def step_length(start: Position, end: Position) -> float:
     return math.hypot(dx or 0.0, dy or 0.0)
 
 
-def fit_velocity(times: Sequence[float], positions: Sequence[Position]) -> tuple[float, float]:
-    """Median of the slopes between every pair of samples (Theil-Sen), per axis.
+class VelocityWindow:
+    """Velocity fitted over the last ``span_s`` seconds of sightings (``most`` at most):
+    the median of the slopes between every pair of them (Theil-Sen), per axis.
 
     Fitting a line over a window averages out the jitter of blob centroids
     that a frame-to-frame difference (distance x frame rate) passes straight
@@ -88,31 +90,83 @@ def fit_velocity(times: Sequence[float], positions: Sequence[Position]) -> tuple
     or drags a remnant along jumps its centroid for a frame or a few, and one
     such jump tilts a least-squares line; the median of pairwise slopes stays
     put until nearly three samples in ten are off.
+
+    The slopes are kept pair by pair: a new sighting adds its slopes to those
+    before it, and one that leaves the window takes its own with it, so a
+    frame computes a dozen slopes rather than all 66 pairs of a full window.
+    Plain Python: at this size NumPy's per-call overhead costs more than the
+    arithmetic, and more still on a camera whose code has gone cold between
+    frames.
     """
-    # Plain Python: a track has at most a dozen samples (66 pairs), where NumPy's
-    # per-call overhead costs more than the arithmetic, and more still on a camera
-    # whose code has gone cold between frames.
-    slopes_x: list[float] = []
-    slopes_y: list[float] = []
-    centres = [(x.centre, y.centre) for x, y in positions]
-    cut = [x.cut_low or x.cut_high or y.cut_low or y.cut_high for x, y in positions]
-    for i in range(len(times) - 1):
-        t0, (x0, y0) = times[i], centres[i]
-        for j in range(i + 1, len(times)):
-            elapsed = times[j] - t0
+
+    def __init__(self, span_s: float = math.inf, most: int = 12) -> None:
+        if most < 1:
+            raise ValueError(f"a window holds at least one sighting, not {most}")
+        self.span_s = span_s
+        self.most = most
+        self._samples: deque[_Sample] = deque()
+
+    def __len__(self) -> int:
+        return len(self._samples)
+
+    @property
+    def last_time(self) -> float:
+        return self._samples[-1].time_s
+
+    @property
+    def last_position(self) -> Position:
+        return self._samples[-1].position
+
+    def add(self, time_s: float, position: Position) -> None:
+        while len(self._samples) >= self.most:
+            self._samples.popleft()
+        self._forget_before(time_s)
+        whole = not _is_cut(position)
+        x1, y1 = position[0].centre, position[1].centre
+        for sample in self._samples:
+            elapsed = time_s - sample.time_s
             if elapsed <= 0.0:
                 continue
-            if cut[i] or cut[j]:
-                dx = displacement(positions[i][0], positions[j][0])
-                dy = displacement(positions[i][1], positions[j][1])
-            else:  # The usual pair, both whole: their centres.
-                x1, y1 = centres[j]
-                dx, dy = x1 - x0, y1 - y0
+            if whole and sample.whole:  # The usual pair: their centres.
+                dx: float | None = x1 - sample.position[0].centre
+                dy: float | None = y1 - sample.position[1].centre
+            else:
+                dx = displacement(sample.position[0], position[0])
+                dy = displacement(sample.position[1], position[1])
             if dx is not None:
-                slopes_x.append(dx / elapsed)
+                sample.slopes_x.append(dx / elapsed)
             if dy is not None:
-                slopes_y.append(dy / elapsed)
-    return (_median(slopes_x), _median(slopes_y))
+                sample.slopes_y.append(dy / elapsed)
+        self._samples.append(_Sample(time_s, position, whole))
+
+    def velocity(self, now_s: float) -> tuple[float, float]:
+        """The fit over the sightings within ``span_s`` of ``now_s`` ((0, 0) for fewer
+        than two)."""
+        self._forget_before(now_s)
+        return (
+            _median([slope for sample in self._samples for slope in sample.slopes_x]),
+            _median([slope for sample in self._samples for slope in sample.slopes_y]),
+        )
+
+    def _forget_before(self, now_s: float) -> None:
+        while self._samples and now_s - self._samples[0].time_s > self.span_s:
+            self._samples.popleft()
+
+
+@dataclass(slots=True)
+class _Sample:
+    time_s: float
+    position: Position
+    whole: bool
+    """Not cut by the frame's edge on any side."""
+    slopes_x: list[float] = field(default_factory=list)
+    """Slopes to each later sighting in the window."""
+    slopes_y: list[float] = field(default_factory=list)
+
+
+def _is_cut(position: Position) -> bool:
+    x, y = position
+    return x.cut_low or x.cut_high or y.cut_low or y.cut_high
 
 
 def _median(values: list[float]) -> float:

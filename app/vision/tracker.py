@@ -29,7 +29,7 @@ import numpy as np
 from scipy.optimize import linear_sum_assignment
 
 from app.vision.detections import Box, Detection
-from app.vision.kinematics import Position, fit_velocity, sighting_position, speed, step_length
+from app.vision.kinematics import VelocityWindow, sighting_position, speed, step_length
 
 Point = tuple[float, float]
 Distance = TypeVar("Distance", float, np.ndarray)
@@ -44,12 +44,12 @@ SMALL_ASSIGNMENT = 64
 class Track:
     key: int
     box: Box
+    sightings: VelocityWindow
+    """Recent sightings (times and positions), for the velocity fit."""
     track_id: int = 0
     """The public id, given when the track is confirmed, so ids count up without gaps."""
     hits: int = 1
     missed: int = 0
-    times: deque[float] = field(default_factory=lambda: deque(maxlen=12))
-    positions: deque[Position] = field(default_factory=lambda: deque(maxlen=12))
     trail: deque[Point] = field(default_factory=lambda: deque(maxlen=64))
     """Recent centroids."""
     velocity: Point = (0.0, 0.0)
@@ -63,7 +63,7 @@ class Track:
         return self.trail[-1]
 
     def predict(self, time_s: float) -> Point:
-        dt = time_s - self.times[-1]
+        dt = time_s - self.sightings.last_time
         x, y = self.last_centroid
         return (x + self.velocity[0] * dt, y + self.velocity[1] * dt)
 
@@ -258,32 +258,30 @@ class Tracker:
 
     def _extend(self, track: Track, detection: Detection, time_s: float) -> Detection | None:
         position = sighting_position(detection)
-        step = step_length(track.positions[-1], position)
+        step = step_length(track.sightings.last_position, position)
         track.hits += 1
         track.missed = 0
         track.box = detection.box
-        track.times.append(time_s)
-        track.positions.append(position)
+        track.sightings.add(time_s, position)
         track.trail.append(detection.centroid)
         track.moved = track.moved or math.dist(detection.centroid, track.origin) > (
             self.config.in_place_px
         )
-        window = [
-            (t, p)
-            for t, p in zip(track.times, track.positions, strict=True)
-            if time_s - t <= self.config.smoothing_window_s
-        ]
-        track.velocity = fit_velocity([t for t, _ in window], [p for _, p in window])
+        track.velocity = track.sightings.velocity(time_s)
         self._confirm_if_due(track)
         if not track.track_id:
             return None
         return detection.with_track(track.track_id, step, speed(track.velocity))
 
     def _start(self, detection: Detection, time_s: float) -> Track:
-        track = Track(key=self._next_key, box=detection.box, origin=detection.centroid)
+        track = Track(
+            key=self._next_key,
+            box=detection.box,
+            origin=detection.centroid,
+            sightings=VelocityWindow(self.config.smoothing_window_s),
+        )
         self._next_key += 1
-        track.times.append(time_s)
-        track.positions.append(sighting_position(detection))
+        track.sightings.add(time_s, sighting_position(detection))
         track.trail.append(detection.centroid)
         self.tracks[track.key] = track
         self._confirm_if_due(track)

@@ -1,13 +1,23 @@
+import numpy as np
 import pytest
 
 from app.vision.detections import LEFT, RIGHT, Box, Detection
 from app.vision.kinematics import (
-    fit_velocity,
+    Position,
+    VelocityWindow,
     point_position,
     sighting_position,
     speed,
     step_length,
 )
+
+
+def fit_velocity(times: list[float], positions: list[Position]) -> tuple[float, float]:
+    """The fit over all of these sightings."""
+    window = VelocityWindow(most=max(1, len(times)))
+    for time_s, position in zip(times, positions, strict=True):
+        window.add(time_s, position)
+    return window.velocity(times[-1])
 
 
 def test_velocity_of_a_straight_track():
@@ -68,3 +78,65 @@ def test_an_object_cut_on_both_sides_gives_no_speed_along_that_axis():
     ]
     velocity = fit_velocity([i / 10 for i in range(6)], [sighting_position(d) for d in wide])
     assert velocity == pytest.approx((0.0, 30.0))
+
+
+def test_the_window_keeps_only_its_span_and_its_most_recent_sightings():
+    window = VelocityWindow(span_s=0.5, most=4)
+    for i in range(10):  # 100 px/s for a second...
+        window.add(i / 10, point_position((10.0 * i, 0.0)))
+    for i in range(10, 16):  # ...then 20 px/s.
+        window.add(i / 10, point_position((90.0 + 2.0 * (i - 9), 0.0)))
+    assert len(window) == 4
+    assert window.velocity(1.5)[0] == pytest.approx(20.0)
+    # Asked later, it forgets what is older than its span.
+    assert window.velocity(1.85)[0] == pytest.approx(20.0)
+    assert len(window) == 2
+    assert window.velocity(2.1) == (0.0, 0.0)
+    assert len(window) == 0
+
+
+def brute_force_theil_sen(times: list[float], positions: list[Position]) -> tuple[float, float]:
+    """Every pair's slope, per axis, from scratch."""
+    slopes: tuple[list[float], list[float]] = ([], [])
+    for i in range(len(times)):
+        for j in range(i + 1, len(times)):
+            for axis in (0, 1):
+                start, end = positions[i][axis], positions[j][axis]
+                cut_low, cut_high = start.cut_low or end.cut_low, start.cut_high or end.cut_high
+                if cut_low and cut_high:
+                    continue
+                moved = (
+                    end.high - start.high
+                    if cut_low
+                    else end.low - start.low
+                    if cut_high
+                    else end.centre - start.centre
+                )
+                slopes[axis].append(moved / (times[j] - times[i]))
+    return (
+        float(np.median(slopes[0])) if slopes[0] else 0.0,
+        float(np.median(slopes[1])) if slopes[1] else 0.0,
+    )
+
+
+def test_the_windows_running_fit_is_the_fit_of_the_sightings_it_holds():
+    rng = np.random.default_rng(7)
+    window = VelocityWindow(span_s=0.6, most=12)
+    times: list[float] = []
+    positions: list[Position] = []
+    time_s = 0.0
+    for step in range(60):
+        time_s += float(rng.choice([0.04, 0.04, 0.08, 0.2]))  # Frames missed now and then.
+        left = 5.0 * step + float(rng.normal(0, 2))
+        sighting = Detection(
+            Box(round(left), 40, 30, 20),
+            (left + 15 + float(rng.normal(0, 1)), 50.0 + float(rng.normal(0, 1))),
+            600.0,
+            LEFT if rng.random() < 0.2 else 0,
+        )
+        window.add(time_s, sighting_position(sighting))
+        times.append(time_s)
+        positions.append(sighting_position(sighting))
+        kept = [i for i, t in enumerate(times) if time_s - t <= 0.6][-12:]
+        expected = brute_force_theil_sen([times[i] for i in kept], [positions[i] for i in kept])
+        assert window.velocity(time_s) == pytest.approx(expected)

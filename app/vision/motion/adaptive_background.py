@@ -192,7 +192,7 @@ class AdaptiveBackground(MotionMethod):
             buffers.alternate_difference,
             difference,
         )
-        self.noise.update(difference)
+        self.noise.update(difference, gray)
         threshold = float(self.threshold)  # One compiled signature, whatever was set.
 
         k = self.noise.k

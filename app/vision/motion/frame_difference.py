@@ -23,7 +23,7 @@ class FrameDifference(MotionMethod):
             still = np.zeros_like(gray)
             return MotionResult(still, still, self.threshold)
         difference = cv2.absdiff(gray, previous)
-        self.noise.update(difference)
+        self.noise.update(difference, gray)
         threshold = self.threshold
         return MotionResult(threshold_difference(difference, threshold), difference, threshold)
 

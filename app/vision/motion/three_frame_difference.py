@@ -31,7 +31,7 @@ class ThreeFrameDifference(MotionMethod):
             return MotionResult(still, still, self.threshold)
         older, previous = history
         recent = cv2.absdiff(gray, previous)
-        self.noise.update(recent)
+        self.noise.update(recent, gray)
         threshold = self.threshold
         difference = cv2.min(recent, cv2.absdiff(gray, older))
         return MotionResult(threshold_difference(difference, threshold), difference, threshold)

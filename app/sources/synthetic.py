@@ -246,6 +246,12 @@ def standard_scenes() -> dict[str, Scene]:
             noise_sigma=1.5,
         ),
         "light-switch": Scene(name="light-switch", frames=60, light_switch_frame=30),
+        "light-switch-crossing": Scene(
+            name="light-switch-crossing",
+            frames=90,
+            light_switch_frame=30,
+            objects=(MovingObject((-20, 100), (40.0, 0.0), (28, 44), 200, first_frame=5),),
+        ),
         "swaying": Scene(
             name="swaying",
             frames=150,

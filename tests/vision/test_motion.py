@@ -7,7 +7,7 @@ import numpy as np
 import pytest
 
 from app.vision.motion import METHODS, create_method
-from app.vision.motion.adaptive_background import AdaptiveBackground
+from app.vision.motion.adaptive_background import AdaptiveBackground, relit
 from app.vision.motion.frame_difference import FrameDifference
 from tests.conftest import ROOT
 
@@ -85,6 +85,45 @@ def test_adaptive_relearns_a_light_switch_instead_of_reporting_it():
     for _ in range(5):
         assert not result.mask.any()
         result = method.apply(lit)
+
+
+def test_adaptive_takes_a_camera_knock_for_motion_not_for_a_light_switch():
+    method = AdaptiveBackground()
+    background = textured_background(1)
+    for _ in range(20):
+        method.apply(background)
+    # Shifted two pixels: edges everywhere, brighter on one side and darker on the other.
+    knocked = np.roll(background, 2, axis=1)
+    result = method.apply(knocked)
+    assert not result.global_change
+    assert result.mask.any()
+
+
+def test_adaptive_keeps_the_threshold_it_had_when_the_light_switches():
+    method = AdaptiveBackground()
+    background = textured_background(1)
+    for _ in range(20):
+        method.apply(background)
+    before = method.threshold
+    lit = np.clip(background.astype(np.int16) + 50, 0, 255).astype(np.uint8)
+    assert method.apply(lit).global_change
+    for _ in range(8):  # The noise estimate never took the switch in as noise.
+        method.apply(lit)
+    assert method.threshold == pytest.approx(before, abs=1.0)
+
+
+def test_relit_maps_the_background_under_an_object_to_an_uneven_new_light():
+    background = textured_background(3).astype(np.float32)
+    lamp = np.linspace(1.0, 1.5, SIZE[1], dtype=np.float32)[None, :]  # Brighter to the right.
+    lit = background * lamp + 10  # At most 250: nothing saturates.
+    frame = lit.astype(np.uint8)
+    frame[40:80, 60:90] = 250  # An object hides what is under it.
+    still = np.ones(background.shape, bool)
+    still[35:85, 55:95] = False
+    relit_background = relit(background, frame, still, ridge=100.0)
+    error = np.abs(relit_background - lit)[35:85, 55:95]
+    assert np.median(error) < 2.5  # A single line over the whole frame: 3.2 and 9.0.
+    assert np.percentile(error, 95) < 6.0
 
 
 def test_adaptive_keeps_a_slow_uniform_object_that_frame_difference_loses():

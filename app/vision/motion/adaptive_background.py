@@ -9,8 +9,12 @@ A running-average background (the classic of Motion and of OpenCV's
 * **Gain compensation and light-switch handling** — the background is scaled
   to the frame's brightness each frame (auto-exposure, clouds), the ratio
   taken over pixels that were still and still look like the background; a
-  change that covers most of the scene is re-learned at once instead of
-  reported.
+  change that covers most of the scene and is brighter (or darker) almost
+  everywhere is re-learned at once instead of reported (a camera that shook
+  differs as widely, but both ways at each edge). Where something was moving
+  then, the old background is kept, relit by a line fitted locally from the
+  old background to the new frame, so an object in view stays an object. The
+  noise estimate learns only from frames that were no light switch.
 * **A second background mode** — each pixel keeps an alternate value beside
   its main one (a cheap two-mode mixture, after Stauffer and Grimson, 1999):
   leaf against sky, an edge that a shaking camera moves back and forth. The
@@ -56,6 +60,7 @@ from __future__ import annotations
 
 import math
 from collections import deque
+from collections.abc import Sequence
 
 import cv2
 import numpy as np
@@ -84,6 +89,14 @@ frame are expected then, and are eaten sooner."""
 GUARD_REACH = 3
 """Pixels each way from a changing one within which the ghost step takes only settled
 neighbours."""
+
+LIGHT_SPREAD = 16.0
+"""Pixels: the standard deviation of the Gaussian window over which a light change is
+fitted. A lamp's light changes over tens of pixels, and a window this wide reaches the
+still pixels around an object some sixty pixels across."""
+
+LIGHT_WINDOW_LEAST = 0.05
+"""The least (weighted) share of still pixels a window needs for its own fit."""
 
 NEAR_MOTION_DEVIATION_SHARE = 0.3
 """The share of ``deviation_rate`` at which still pixels next to motion teach it."""
@@ -192,7 +205,6 @@ class AdaptiveBackground(MotionMethod):
             buffers.alternate_difference,
             difference,
         )
-        self.noise.update(difference, gray)
         threshold = float(self.threshold)  # One compiled signature, whatever was set.
 
         k = self.noise.k
@@ -208,9 +220,13 @@ class AdaptiveBackground(MotionMethod):
             raw,
             buffers.limit,
         )
-        if moving > self.light_switch_fraction * raw.size:
-            result = self._learn(gray)
+        if moving > self.light_switch_fraction * raw.size and self._lights_changed(gray, threshold):
+            result = self._relearn_after_light_switch(gray)
             return MotionResult(result.mask, difference, threshold, global_change=True)
+        # After the light-switch test: the change a light switch makes is not noise, and
+        # a noise estimate that took it in would raise the threshold past it and hide
+        # the switch (and everything else) until it had decayed.
+        self.noise.update(difference, gray)
         # Leaves and edges shift by a pixel or so, so a neighbour's variability is a
         # pixel's own a moment later: each pixel's threshold is the largest in its 3x3.
         per_pixel = cv2.dilate(buffers.limit, self._neighbour_kernel)
@@ -335,6 +351,39 @@ class AdaptiveBackground(MotionMethod):
         self._previous_raw = self._buffers.spare_raw
         return MotionResult(self._previous_mask, self._previous_mask, self.threshold)
 
+    def _lights_changed(self, gray: GrayImage, threshold: float) -> bool:
+        """Whether a frame that differs from the background almost everywhere is brighter
+        (or darker) almost everywhere: a light switched, or the exposure jumped. A
+        camera that shook differs as widely, but brighter on one side of each edge and
+        darker on the other."""
+        assert self._background is not None
+        grid = (slice(None, None, GAIN_GRID), slice(None, None, GAIN_GRID))
+        shift = np.median(gray[grid].astype(np.float32) - self._background[grid])
+        return bool(abs(shift) > threshold)
+
+    def _relearn_after_light_switch(self, gray: GrayImage) -> MotionResult:
+        """Take this frame as the background, except where something was moving.
+
+        An object in view when the light changes would otherwise become
+        background: lost until it moved off its own picture, which then stayed
+        behind as a ghost. Where the last mask was (widened by ``GUARD_REACH``
+        for the step the object took since), the background is the old one
+        mapped to the new light (``relit``).
+        """
+        assert self._background is not None and self._previous_mask is not None
+        old_background, moving = self._background, self._previous_mask
+        result = self._learn(gray)
+        if not moving.any():
+            return result
+        assert self._background is not None and self._settled is not None
+        kept = cv2.dilate(moving, self._guard_kernel) != 0
+        # Not the last mask's still pixels: the object has stepped onto some of them.
+        mapped = relit(old_background, gray, ~kept, float(self.threshold) ** 2)
+        self._background[kept] = mapped[kept]
+        self._alternate = self._background.copy()
+        self._settled[kept] = 0
+        return result
+
     def _gain(self, gray: GrayImage) -> float:
         """Brightness ratio of frame to background over pixels that look like background.
 
@@ -379,6 +428,52 @@ class AdaptiveBackground(MotionMethod):
         self._still_frames = None
         self._settled = None
         self._frame_index = 0
+
+
+def relit(background: FloatImage, frame: GrayImage, still: np.ndarray, ridge: float) -> FloatImage:
+    """``background`` as it looks in the light of ``frame``: fitted, around each pixel,
+    by a straight line from the background to the frame over the ``still`` pixels
+    nearby (a Gaussian window, ``LIGHT_SPREAD``): lamps add light and exposure scales it,
+    each unevenly over the scene. A window with under ``LIGHT_WINDOW_LEAST`` still
+    pixels takes the fit over the whole frame instead; with none at all, the frame is
+    all there is. ``ridge``, a variance of the background that the slope does not
+    trust, pulls it towards the ratio of the means where the background is flat (any
+    slope fits a flat patch)."""
+    if not still.any():
+        return frame.astype(np.float32)
+    weight = still.astype(np.float32)
+    old = background.astype(np.float32)
+    new = frame.astype(np.float32)
+    nearby = cv2.GaussianBlur(weight, (0, 0), LIGHT_SPREAD)
+
+    def local_mean(term: FloatImage) -> FloatImage:
+        return np.asarray(
+            cv2.GaussianBlur(term * weight, (0, 0), LIGHT_SPREAD) / np.maximum(nearby, 1e-6)
+        )
+
+    def mean(term: FloatImage) -> float:
+        return float((term * weight).sum() / weight.sum())
+
+    terms = (old, new, old * old, old * new)
+    fitted = np.where(
+        nearby >= LIGHT_WINDOW_LEAST,
+        _mapped_by_line(old, [local_mean(term) for term in terms], ridge),
+        _mapped_by_line(old, [mean(term) for term in terms], ridge),
+    )
+    return np.clip(fitted, 0.0, 255.0).astype(np.float32)
+
+
+def _mapped_by_line(
+    old: FloatImage, means: Sequence[FloatImage] | Sequence[float], ridge: float
+) -> FloatImage:
+    """``old`` through the least-squares line from old to new given by the (weighted)
+    means of old, new, old squared and old x new, its slope pulled towards the ratio of
+    the means by ``ridge``."""
+    old_mean, new_mean, old_square_mean, cross_mean = means
+    variance = np.maximum(old_square_mean - old_mean * old_mean, 0.0)
+    ratio = new_mean / np.maximum(old_mean, 1.0)
+    slope = (cross_mean - old_mean * new_mean + ridge * ratio) / (variance + ridge)
+    return np.asarray(new_mean + slope * (old - old_mean), np.float32)
 
 
 def warm_up() -> None:

@@ -94,6 +94,7 @@ class VelocityWindow:
     The slopes are kept pair by pair: a new sighting adds its slopes to those
     before it, and one that leaves the window takes its own with it, so a
     frame computes a dozen slopes rather than all 66 pairs of a full window.
+    Sightings come in time order (the oldest leave first).
     Plain Python: at this size NumPy's per-call overhead costs more than the
     arithmetic, and more still on a camera whose code has gone cold between
     frames.
@@ -102,6 +103,8 @@ class VelocityWindow:
     def __init__(self, span_s: float = math.inf, most: int = 12) -> None:
         if most < 1:
             raise ValueError(f"a window holds at least one sighting, not {most}")
+        if not span_s >= 0:  # NaN too.
+            raise ValueError(f"a window spans 0 seconds or more, not {span_s}")
         self.span_s = span_s
         self.most = most
         self._samples: deque[_Sample] = deque()

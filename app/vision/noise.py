@@ -62,7 +62,7 @@ class NoiseEstimator:
     camera, compression blocks and light flicker would pass a threshold of a
     few k sigma. Both scale with the light, so in a dark scene (mean grey under
     ``DIM_GREY``) the floor comes down in proportion, to ``DARK_FLOOR_SHARE`` of
-    itself: a night camera with noise reduction shows people a dozen grey levels
+    itself: a night camera with noise reduction shows people a few grey levels
     from the background, which a bright scene's floor would hide.
     """
 
@@ -90,8 +90,8 @@ class NoiseEstimator:
         if self.sigma is not None and self._count % self.every:
             return
         sigma = noise_sigma(difference)
-        brightness = float(gray[::BRIGHTNESS_STEP, ::BRIGHTNESS_STEP].mean())
-        if self.sigma is None or self.brightness is None:
+        brightness = float(gray[::BRIGHTNESS_STEP, ::BRIGHTNESS_STEP].mean()) if gray.size else 0.0
+        if self.sigma is None or self.brightness is None:  # Both, or neither (for mypy).
             self.sigma, self.brightness = sigma, brightness
         else:
             self.sigma += self.smoothing * (sigma - self.sigma)

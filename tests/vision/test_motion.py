@@ -112,6 +112,36 @@ def test_adaptive_keeps_the_threshold_it_had_when_the_light_switches():
     assert method.threshold == pytest.approx(before, abs=1.0)
 
 
+def test_adaptive_sees_a_noisy_cameras_noise_from_its_first_compared_frame():
+    rng = np.random.default_rng(11)
+    background = textured_background(4).astype(np.float32)
+    method = AdaptiveBackground()
+    noisy = [
+        np.clip(background + rng.normal(0, 8, SIZE), 0, 255).astype(np.uint8) for _ in range(3)
+    ]
+    method.apply(noisy[0])
+    for frame in noisy[1:]:
+        assert np.count_nonzero(method.apply(frame).mask) < 0.01 * frame.size
+
+
+def test_adaptive_takes_a_light_coming_on_over_a_few_frames_as_a_light_switch():
+    rng = np.random.default_rng(12)
+    method = AdaptiveBackground()
+    background = textured_background(1).astype(np.float32)
+
+    def lit(step: int) -> np.ndarray:
+        return np.clip(background + step + rng.normal(0, 2, SIZE), 0, 255).astype(np.uint8)
+
+    for _ in range(25):
+        method.apply(lit(0))
+    # Brighter by 8 grey levels a frame: at first only in part above the threshold,
+    # so the mask the switch finds is the light itself, not objects to keep.
+    for step in (8, 16, 24, 32, 40, 48, 48):
+        method.apply(lit(step))
+    for _ in range(4):
+        assert np.count_nonzero(method.apply(lit(48)).mask) < 0.01 * background.size
+
+
 def test_relit_maps_the_background_under_an_object_to_an_uneven_new_light():
     background = textured_background(3).astype(np.float32)
     lamp = np.linspace(1.0, 1.5, SIZE[1], dtype=np.float32)[None, :]  # Brighter to the right.

@@ -81,3 +81,15 @@ def test_an_object_entering_the_view_has_its_own_speed_while_it_enters():
     assert len(entering) >= 20
     # The centroid of what shows moves at 10 px/s.
     assert statistics.median(entering) == pytest.approx(20.0, rel=0.05)
+
+
+def test_an_object_in_view_when_the_light_switches_keeps_its_track():
+    scene = SCENES["light-switch-crossing"]
+    assert scene.light_switch_frame is not None
+    pipeline = Pipeline(PipelineConfig(), fps=scene.fps)
+    ids_around_the_switch: set[int] = set()
+    for index in range(scene.frames):
+        result = pipeline.process(scene.frame(index))
+        if abs(index - scene.light_switch_frame) <= 15:
+            ids_around_the_switch |= {d.track_id for d in result.detections}
+    assert len(ids_around_the_switch) == 1

@@ -205,6 +205,8 @@ class AdaptiveBackground(MotionMethod):
             buffers.alternate_difference,
             difference,
         )
+        if self.noise.sigma is None:  # The first frame compared: the noise it shows.
+            self.noise.update(difference, gray)
         threshold = float(self.threshold)  # One compiled signature, whatever was set.
 
         k = self.noise.k
@@ -221,7 +223,7 @@ class AdaptiveBackground(MotionMethod):
             buffers.limit,
         )
         if moving > self.light_switch_fraction * raw.size and self._lights_changed(gray, threshold):
-            result = self._relearn_after_light_switch(gray)
+            result = self._relearn_after_light_switch(gray, threshold)
             return MotionResult(result.mask, difference, threshold, global_change=True)
         # After the light-switch test: the change a light switch makes is not noise, and
         # a noise estimate that took it in would raise the threshold past it and hide
@@ -353,36 +355,45 @@ class AdaptiveBackground(MotionMethod):
 
     def _lights_changed(self, gray: GrayImage, threshold: float) -> bool:
         """Whether a frame that differs from the background almost everywhere is brighter
-        (or darker) almost everywhere: a light switched, or the exposure jumped. A
-        camera that shook differs as widely, but brighter on one side of each edge and
-        darker on the other."""
+        (or darker) by more than ``threshold`` at most of its pixels (the median change):
+        a light switched, or the exposure jumped. A camera that shook differs as
+        widely, but brighter on one side of each edge and darker on the other."""
         assert self._background is not None
         grid = (slice(None, None, GAIN_GRID), slice(None, None, GAIN_GRID))
         shift = np.median(gray[grid].astype(np.float32) - self._background[grid])
         return bool(abs(shift) > threshold)
 
-    def _relearn_after_light_switch(self, gray: GrayImage) -> MotionResult:
+    def _relearn_after_light_switch(self, gray: GrayImage, threshold: float) -> MotionResult:
         """Take this frame as the background, except where something was moving.
 
         An object in view when the light changes would otherwise become
         background: lost until it moved off its own picture, which then stayed
         behind as a ghost. Where the last mask was (widened by ``GUARD_REACH``
         for the step the object took since), the background is the old one
-        mapped to the new light (``relit``).
+        mapped to the new light (``relit``), and that stays the last mask, so a
+        second switch in a row keeps it too. Where that would cover as much of
+        the frame as a light switch does, the "motion" was the light coming on
+        over a few frames, not objects: the frame is all taken.
         """
         assert self._background is not None and self._previous_mask is not None
         old_background, moving = self._background, self._previous_mask
         result = self._learn(gray)
         if not moving.any():
             return result
+        kept = cv2.dilate(moving, self._guard_kernel)
+        kept_pixels = cv2.countNonZero(kept)
+        if kept_pixels > self.light_switch_fraction * kept.size:
+            return result
         assert self._background is not None and self._settled is not None
-        kept = cv2.dilate(moving, self._guard_kernel) != 0
+        where = kept != 0
         # Not the last mask's still pixels: the object has stepped onto some of them.
-        mapped = relit(old_background, gray, ~kept, float(self.threshold) ** 2)
-        self._background[kept] = mapped[kept]
+        mapped = relit(old_background, gray, ~where, threshold**2)
+        self._background[where] = mapped[where]
         self._alternate = self._background.copy()
-        self._settled[kept] = 0
-        return result
+        self._settled[where] = 0
+        self._previous_mask = kept
+        self._previous_moving = kept_pixels
+        return MotionResult(np.zeros_like(gray), np.zeros_like(gray), threshold)
 
     def _gain(self, gray: GrayImage) -> float:
         """Brightness ratio of frame to background over pixels that look like background.
@@ -434,11 +445,11 @@ def relit(background: FloatImage, frame: GrayImage, still: np.ndarray, ridge: fl
     """``background`` as it looks in the light of ``frame``: fitted, around each pixel,
     by a straight line from the background to the frame over the ``still`` pixels
     nearby (a Gaussian window, ``LIGHT_SPREAD``): lamps add light and exposure scales it,
-    each unevenly over the scene. A window with under ``LIGHT_WINDOW_LEAST`` still
-    pixels takes the fit over the whole frame instead; with none at all, the frame is
-    all there is. ``ridge``, a variance of the background that the slope does not
-    trust, pulls it towards the ratio of the means where the background is flat (any
-    slope fits a flat patch)."""
+    each unevenly over the scene. A window whose (weighted) share of still pixels is
+    under ``LIGHT_WINDOW_LEAST`` takes the fit over the whole frame instead; with no
+    still pixel at all, the frame is all there is. ``ridge``, a variance of the
+    background that the slope does not trust, pulls it towards the ratio of the means
+    where the background is flat (any slope fits a flat patch)."""
     if not still.any():
         return frame.astype(np.float32)
     weight = still.astype(np.float32)

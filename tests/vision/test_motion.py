@@ -193,6 +193,19 @@ def test_adaptive_absorbs_an_object_that_stops(noise):
     assert not any(r.mask.any() for r in results[-10:])
 
 
+def test_adaptive_counts_more_motion_regions_than_16_bit_labels_hold():
+    # Full-size detection of a sensor gone to snow: every other pixel of every other
+    # row moving, 259,200 regions of one pixel, on a frame that checks stale regions.
+    method = AdaptiveBackground(check_every=1)
+    calm = np.full((720, 1440), 60, np.uint8)
+    method.apply(calm)
+    snow = calm.copy()
+    snow[::2, ::2] = 255
+    result = method.apply(snow)
+    assert not result.global_change
+    assert np.count_nonzero(result.mask) > 2**16
+
+
 def test_adaptive_refuses_frames_that_are_not_8_bit_grey():
     method = AdaptiveBackground()
     with pytest.raises(ValueError, match="8-bit grey"):

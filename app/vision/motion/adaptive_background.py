@@ -414,7 +414,12 @@ class AdaptiveBackground(MotionMethod):
     def _absorb_still_regions(self, gray: GrayImage, mask: Mask, stirring: Mask) -> None:
         """Count, per motion region, frames without any change; absorb the stale ones."""
         assert self._still_frames is not None and self._background is not None
-        regions, labels = cv2.connectedComponents(mask, connectivity=8, ltype=cv2.CV_16U)
+        # 16-bit labels (half the memory to sweep) where they surely suffice: 8-connected
+        # regions are at most a quarter of the pixels (lone pixels, one apart).
+        wide = mask.size // 4 >= 2**16 - 1
+        regions, labels = cv2.connectedComponents(
+            mask, connectivity=8, ltype=cv2.CV_32S if wide else cv2.CV_16U
+        )
         kernels.age_still_regions(
             labels,
             regions,

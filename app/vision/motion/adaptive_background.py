@@ -9,9 +9,10 @@ A running-average background (the classic of Motion and of OpenCV's
 * **Gain compensation and light-switch handling** — the background is scaled
   to the frame's brightness each frame (auto-exposure, clouds), the ratio
   taken over pixels that were still and still look like the background; a
-  change that covers most of the scene and is brighter (or darker) almost
-  everywhere is re-learned at once instead of reported (a camera that shook
-  differs as widely, but both ways at each edge). Where something was moving
+  change that covers most of the scene, where nothing moved before too, and
+  is brighter (or darker) almost everywhere is re-learned at once instead of
+  reported (a lorry filling the view differs only where it drove in; a camera
+  that shook differs as widely, but both ways at each edge). Where something was moving
   then, the old background is kept, relit by a line fitted locally from the
   old background to the new frame, so an object in view stays an object. The
   noise estimate learns only from frames that were no light switch.
@@ -222,7 +223,9 @@ class AdaptiveBackground(MotionMethod):
             raw,
             buffers.limit,
         )
-        if moving > self.light_switch_fraction * raw.size and self._lights_changed(gray, threshold):
+        if moving > self.light_switch_fraction * raw.size and self._lights_changed(
+            gray, raw, threshold
+        ):
             result = self._relearn_after_light_switch(gray, threshold)
             return MotionResult(result.mask, difference, threshold, global_change=True)
         # After the light-switch test: the change a light switch makes is not noise, and
@@ -353,13 +356,20 @@ class AdaptiveBackground(MotionMethod):
         self._previous_raw = self._buffers.spare_raw
         return MotionResult(self._previous_mask, self._previous_mask, self.threshold)
 
-    def _lights_changed(self, gray: GrayImage, threshold: float) -> bool:
-        """Whether a frame that differs from the background almost everywhere is brighter
-        (or darker) by more than ``threshold`` at most of its pixels (the median change):
-        a light switched, or the exposure jumped. A camera that shook differs as
-        widely, but brighter on one side of each edge and darker on the other."""
-        assert self._background is not None
+    def _lights_changed(self, gray: GrayImage, raw: Mask, threshold: float) -> bool:
+        """Whether a frame that differs from the background almost everywhere does so
+        because the light changed (or the exposure jumped): it differs where nothing
+        moved last frame too, by more than ``threshold`` and the same way at most of
+        those pixels (the median change). An object that fills the view differs only
+        where it is, grown from where it was; a camera that shook differs everywhere,
+        but brighter on one side of each edge and darker on the other."""
+        assert self._background is not None and self._previous_mask is not None
         grid = (slice(None, None, GAIN_GRID), slice(None, None, GAIN_GRID))
+        was_still = self._previous_mask[grid] == 0
+        if was_still.any():
+            changed = np.count_nonzero(raw[grid][was_still]) / np.count_nonzero(was_still)
+            if changed <= self.light_switch_fraction:
+                return False
         shift = np.median(gray[grid].astype(np.float32) - self._background[grid])
         return bool(abs(shift) > threshold)
 

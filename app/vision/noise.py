@@ -15,7 +15,7 @@ from __future__ import annotations
 import numpy as np
 
 from app.vision.compiled import compiled
-from app.vision.types import GrayImage
+from app.vision.types import GrayImage, Mask
 
 HALF_NORMAL_MEDIAN = 0.6745
 
@@ -25,28 +25,44 @@ DIM_GREY = 64.0
 DARK_FLOOR_SHARE = 0.5
 """The least share of its floor the threshold keeps, however dark the scene."""
 
+FEWEST_STILL = 0.05
+"""The least share of a frame's pixels, still, that the noise is measured on."""
+
 BRIGHTNESS_STEP = 4
 """The scene's brightness is measured on every BRIGHTNESS_STEP-th row and column."""
 
 
-def noise_sigma(difference: GrayImage) -> float:
-    """Robust noise standard deviation of an absolute difference image (8-bit)."""
+def noise_sigma(difference: GrayImage, moving: Mask | None = None) -> float | None:
+    """Robust noise standard deviation of an absolute difference image (8-bit), over
+    the pixels that are not ``moving`` (nonzero there); None where too few are left
+    to tell (``FEWEST_STILL``)."""
     if difference.dtype != np.uint8:
         raise ValueError(f"needs an 8-bit difference image, not {difference.dtype}")
-    return max(0.0, _median_level(np.ascontiguousarray(difference))) / HALF_NORMAL_MEDIAN
+    difference = np.ascontiguousarray(difference)
+    level = _median_level(difference, difference if moving is None else moving, moving is not None)
+    if level is None:
+        return None
+    return max(0.0, level) / HALF_NORMAL_MEDIAN
 
 
 @compiled
-def _median_level(difference: GrayImage) -> float:
+def _median_level(difference: GrayImage, moving: Mask, skip_moving: bool) -> float | None:
     """The median grey level, interpolated inside its bin (integer levels would round a
-    clean camera's noise to exactly 0 or 1), of every other row and column: a quarter
-    of the pixels estimates it as well, at a quarter of the cost."""
+    clean camera's noise to exactly 0 or 1), of every other row and column (a quarter
+    of the pixels estimates it as well, at a quarter of the cost), leaving out the
+    ``moving`` pixels if ``skip_moving``."""
     counts = np.zeros(256, np.int64)
     rows, cols = difference.shape
+    counted = 0
     for y in range(0, rows, 2):
         for x in range(0, cols, 2):
+            if skip_moving and moving[y, x] != 0:
+                continue
             counts[difference[y, x]] += 1
-    half = ((rows + 1) // 2) * ((cols + 1) // 2) / 2.0
+            counted += 1
+    if counted < FEWEST_STILL * ((rows + 1) // 2) * ((cols + 1) // 2):
+        return None
+    half = counted / 2.0
     below = 0
     for level in range(256):
         if below + counts[level] >= half:
@@ -84,12 +100,16 @@ class NoiseEstimator:
         """The scene's mean grey level."""
         self._count = 0
 
-    def update(self, difference: GrayImage, gray: GrayImage) -> None:
-        """``difference``: the method's difference image; ``gray``: the frame."""
+    def update(self, difference: GrayImage, gray: GrayImage, moving: Mask | None = None) -> None:
+        """``difference``: the method's difference image; ``gray``: the frame; ``moving``:
+        where something moved (nonzero), if the method knows, left out of the estimate:
+        an object that fills most of the view would otherwise be taken for noise."""
         self._count += 1
         if self.sigma is not None and self._count % self.every:
             return
-        sigma = noise_sigma(difference)
+        sigma = noise_sigma(difference, moving)
+        if sigma is None:
+            return
         brightness = float(gray[::BRIGHTNESS_STEP, ::BRIGHTNESS_STEP].mean()) if gray.size else 0.0
         if self.sigma is None or self.brightness is None:  # Both, or neither (for mypy).
             self.sigma, self.brightness = sigma, brightness

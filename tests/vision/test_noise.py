@@ -36,3 +36,15 @@ def test_the_floor_comes_down_with_the_light_in_a_dark_scene(mean_grey, floor):
     for _ in range(40):
         clean.update(np.zeros((60, 80), np.uint8), np.full((60, 80), mean_grey, np.uint8))
     assert clean.threshold == pytest.approx(floor, abs=0.05)
+
+
+def test_noise_is_measured_on_still_pixels_when_told_what_moves():
+    rng = np.random.default_rng(6)
+    difference = np.abs(rng.normal(0, 3, (240, 320))).round().astype(np.uint8)
+    moving = np.zeros_like(difference)
+    moving[:, :200] = 255  # an object covering 62% of the frame
+    difference[:, :200] = 90
+    assert noise_sigma(difference) > 100  # The median is the object's.
+    assert noise_sigma(difference, moving) == pytest.approx(3.0, rel=0.2)
+    moving[:] = 255
+    assert noise_sigma(difference, moving) is None  # Nothing still to tell by.

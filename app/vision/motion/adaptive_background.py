@@ -99,6 +99,9 @@ still pixels around an object some sixty pixels across."""
 LIGHT_WINDOW_LEAST = 0.05
 """The least (weighted) share of still pixels a window needs for its own fit."""
 
+CROWDED_SHARE = 0.4
+"""The share of the frame moving past which the noise is measured on still pixels only."""
+
 NEAR_MOTION_DEVIATION_SHARE = 0.3
 """The share of ``deviation_rate`` at which still pixels next to motion teach it."""
 
@@ -175,6 +178,8 @@ class AdaptiveBackground(MotionMethod):
         """The last ``check_every`` frames, oldest first."""
         self._previous_mask: Mask | None = None
         self._previous_raw: Mask | None = None
+        self._previous_moving = 0
+        """Pixels of ``_previous_mask`` that are set."""
         self._still_frames: np.ndarray | None = None
         self._settled: np.ndarray | None = None  # frames each pixel has been still, to 255
         self._frame_index = 0
@@ -231,7 +236,11 @@ class AdaptiveBackground(MotionMethod):
         # After the light-switch test: the change a light switch makes is not noise, and
         # a noise estimate that took it in would raise the threshold past it and hide
         # the switch (and everything else) until it had decayed.
-        self.noise.update(difference, gray)
+        # The noise estimate (a median) stays put while up to a fair share of pixels
+        # moves; past that the last mask is left out of it (only then: a mask holds
+        # flicker and a shaking camera's edges, which are noise too).
+        crowded = self._previous_moving > CROWDED_SHARE * gray.size
+        self.noise.update(difference, gray, self._previous_mask if crowded else None)
         # Leaves and edges shift by a pixel or so, so a neighbour's variability is a
         # pixel's own a moment later: each pixel's threshold is the largest in its 3x3.
         per_pixel = cv2.dilate(buffers.limit, self._neighbour_kernel)
@@ -246,7 +255,7 @@ class AdaptiveBackground(MotionMethod):
         # they teach the variability slowly (NEAR_MOTION_DEVIATION_SHARE).
         near_motion = (
             cv2.dilate(self._previous_mask, self._learning_kernel)
-            if self._previous_mask.any() and not learning
+            if self._previous_moving and not learning
             else buffers.nothing
         )
         mask = np.empty_like(gray)
@@ -291,6 +300,7 @@ class AdaptiveBackground(MotionMethod):
         self._recent.append(gray)
         self._previous_mask = mask
         self._previous_raw = raw
+        self._previous_moving = moving
         return MotionResult(mask, difference, threshold)
 
     def _erode_ghosts(
@@ -354,6 +364,7 @@ class AdaptiveBackground(MotionMethod):
         self._recent = deque([gray], maxlen=self.check_every)
         self._previous_mask = np.zeros_like(gray)
         self._previous_raw = self._buffers.spare_raw
+        self._previous_moving = 0
         return MotionResult(self._previous_mask, self._previous_mask, self.threshold)
 
     def _lights_changed(self, gray: GrayImage, raw: Mask, threshold: float) -> bool:
@@ -451,6 +462,7 @@ class AdaptiveBackground(MotionMethod):
         self._recent.clear()
         self._previous_mask = None
         self._previous_raw = None
+        self._previous_moving = 0
         self._still_frames = None
         self._settled = None
         self._frame_index = 0

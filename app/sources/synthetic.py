@@ -252,6 +252,14 @@ def standard_scenes() -> dict[str, Scene]:
             light_switch_frame=30,
             objects=(MovingObject((-20, 100), (40.0, 0.0), (28, 44), 200, first_frame=5),),
         ),
+        # A dark lorry driving in until it fills most of the view: neither a light
+        # switch nor noise, though most of the picture changes.
+        "lorry": Scene(
+            name="lorry",
+            frames=90,
+            min_visible_fraction=0.05,
+            objects=(MovingObject((-260, 20), (60.0, 0.0), (250, 200), 30, first_frame=5),),
+        ),
         "swaying": Scene(
             name="swaying",
             frames=150,

@@ -84,6 +84,9 @@ class TrackerConfig:
     """Distance from its first centroid within which a track counts as in place."""
     gate_px: float = 25.0
     """Largest jump (beyond the object's own size) a detection may make to join a track."""
+    together_share: float = 0.25
+    """Tracks in one blob whose velocities differ by less than this share of the faster
+    one's speed move as one: the blob is one object's, not a crossing to split."""
     smoothing_window_s: float = 0.6
     """Span of history the velocity fit looks at."""
     max_objects: int = 64
@@ -211,10 +214,11 @@ class Tracker:
         """Objects that cross merge into one blob: give each of their tracks its own piece.
 
         A blob is a merge when it holds the predicted centres of two or more
-        confirmed tracks that were each seen last frame (and no other
-        blob holds them). Each track then gets its own box at its predicted
-        position, cut to the blob. Returns those (track, piece)
-        pairs and what is left for ordinary assignment.
+        confirmed tracks that were each seen last frame (and no other blob
+        holds them) and that do not move as one (``_move_as_one``). Each
+        track then gets its own box at its predicted position, cut to the
+        blob. Returns those (track, piece) pairs and what is left for
+        ordinary assignment.
         """
         candidates = [
             (track, predicted)
@@ -234,7 +238,7 @@ class Tracker:
         for det_index, t_indices in holders.items():
             det = detections[det_index]
             inside = [candidates[i] for i in t_indices]
-            if len(inside) < 2:
+            if len(inside) < 2 or self._move_as_one(inside):
                 continue
             share = det.area / sum(t.box.area for t, _ in inside)
             for track, predicted in inside:
@@ -255,6 +259,20 @@ class Tracker:
             [t for t, _ in rest],
             [p for _, p in rest],
         )
+
+    def _move_as_one(self, inside: list[tuple[Track, Point]]) -> bool:
+        """Whether two of these tracks move as one (their velocities differ by under
+        ``together_share`` of the faster one's speed): two pieces of one object (it
+        split for a few frames, say, as it came into view) that have joined up again,
+        not objects that cross or overtake. Coasting each on its prediction would
+        report one object as two, with shrinking boxes and frozen speeds."""
+        for index, (first, _) in enumerate(inside):
+            for second, _ in inside[index + 1 :]:
+                apart = math.dist(first.velocity, second.velocity)
+                faster = max(speed(first.velocity), speed(second.velocity))
+                if apart < self.config.together_share * faster:
+                    return True
+        return False
 
     def _extend(self, track: Track, detection: Detection, time_s: float) -> Detection | None:
         position = sighting_position(detection)

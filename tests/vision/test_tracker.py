@@ -101,6 +101,23 @@ def test_two_objects_crossing_keep_their_ids():
     assert all(d.area <= d.box.area for frame in out for d in frame)
 
 
+def test_an_object_split_in_two_for_a_while_is_one_object_again_when_it_joins_up():
+    tracker = Tracker()
+    frames = []
+    for i in range(30):
+        x = 10 + 4 * i  # 40 px/s
+        if i < 10:  # Its middle matches the background: two pieces, moving as one.
+            frames.append([det(x, 50, 18, 20), det(x + 22, 50, 18, 20)])
+        else:
+            frames.append([det(x, 50, 40, 20)])
+    out = run(tracker, frames)
+    assert all(len(frame) == 2 for frame in out[2:10])
+    for frame in out[12:]:  # Not two pieces coasting on, cut smaller each frame.
+        assert len(frame) == 1
+        assert (frame[0].box.w, frame[0].box.h) == (40, 20)
+    assert out[-1][0].speed_px_s == pytest.approx(40.0, abs=2.0)
+
+
 def test_object_hidden_for_a_few_frames_keeps_its_id():
     tracker = Tracker()
     frames = [[det(10 + 5 * i, 30)] if not 10 <= i < 14 else [] for i in range(25)]

@@ -12,10 +12,11 @@ A running-average background (the classic of Motion and of OpenCV's
   change that covers most of the scene, where nothing moved before too, and
   is brighter (or darker) almost everywhere is re-learned at once instead of
   reported (a lorry filling the view differs only where it drove in; a camera
-  that shook differs as widely, but both ways at each edge). Where something was moving
-  then, the old background is kept, relit by a line fitted locally from the
-  old background to the new frame, so an object in view stays an object. The
-  noise estimate learns only from frames that were no light switch.
+  that shook differs as widely, but both ways at each edge). Where something
+  was moving then, the old background is kept, relit by a line fitted locally
+  from the old background to the new frame, so an object in view stays an
+  object. The noise estimate learns only from frames that were no light
+  switch, and from still pixels only when much of the frame moves.
 * **A second background mode** — each pixel keeps an alternate value beside
   its main one (a cheap two-mode mixture, after Stauffer and Grimson, 1999):
   leaf against sky, an edge that a shaking camera moves back and forth. The
@@ -235,10 +236,10 @@ class AdaptiveBackground(MotionMethod):
             return MotionResult(result.mask, difference, threshold, global_change=True)
         # After the light-switch test: the change a light switch makes is not noise, and
         # a noise estimate that took it in would raise the threshold past it and hide
-        # the switch (and everything else) until it had decayed.
-        # The noise estimate (a median) stays put while up to a fair share of pixels
-        # moves; past that the last mask is left out of it (only then: a mask holds
-        # flicker and a shaking camera's edges, which are noise too).
+        # the switch (and everything else) until it had decayed. The estimate (a
+        # median) stays put while up to a fair share of pixels moves; past that the
+        # last mask is left out of it (only then: a mask holds flicker and a shaking
+        # camera's edges, which are noise too).
         crowded = self._previous_moving > CROWDED_SHARE * gray.size
         self.noise.update(difference, gray, self._previous_mask if crowded else None)
         # Leaves and edges shift by a pixel or so, so a neighbour's variability is a

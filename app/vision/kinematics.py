@@ -124,23 +124,17 @@ class VelocityWindow:
         while len(self._samples) >= self.most:
             self._samples.popleft()
         self._forget_before(time_s)
-        whole = not _is_cut(position)
-        x1, y1 = position[0].centre, position[1].centre
         for sample in self._samples:
             elapsed = time_s - sample.time_s
             if elapsed <= 0.0:
                 continue
-            if whole and sample.whole:  # The usual pair: their centres.
-                dx: float | None = x1 - sample.position[0].centre
-                dy: float | None = y1 - sample.position[1].centre
-            else:
-                dx = displacement(sample.position[0], position[0])
-                dy = displacement(sample.position[1], position[1])
+            dx = displacement(sample.position[0], position[0])
+            dy = displacement(sample.position[1], position[1])
             if dx is not None:
                 sample.slopes_x.append(dx / elapsed)
             if dy is not None:
                 sample.slopes_y.append(dy / elapsed)
-        self._samples.append(_Sample(time_s, position, whole))
+        self._samples.append(_Sample(time_s, position))
 
     def velocity(self, now_s: float) -> tuple[float, float]:
         """The fit over the sightings within ``span_s`` of ``now_s`` ((0, 0) for fewer
@@ -160,16 +154,9 @@ class VelocityWindow:
 class _Sample:
     time_s: float
     position: Position
-    whole: bool
-    """Not cut by the frame's edge on any side."""
     slopes_x: list[float] = field(default_factory=list)
     """Slopes to each later sighting in the window."""
     slopes_y: list[float] = field(default_factory=list)
-
-
-def _is_cut(position: Position) -> bool:
-    x, y = position
-    return x.cut_low or x.cut_high or y.cut_low or y.cut_high
 
 
 def _median(values: list[float]) -> float:

@@ -232,8 +232,9 @@ class AdaptiveBackground(MotionMethod):
         if moving > self.light_switch_fraction * raw.size and self._lights_changed(
             gray, raw, threshold
         ):
-            result = self._relearn_after_light_switch(gray, threshold)
-            return MotionResult(result.mask, difference, threshold, global_change=True)
+            self._relearn_after_light_switch(gray, threshold)
+            still = np.zeros_like(gray)
+            return MotionResult(still, difference, threshold, global_change=True)
         # After the light-switch test: the change a light switch makes is not noise, and
         # a noise estimate that took it in would raise the threshold past it and hide
         # the switch (and everything else) until it had decayed. The estimate (a
@@ -385,7 +386,7 @@ class AdaptiveBackground(MotionMethod):
         shift = np.median(gray[grid].astype(np.float32) - self._background[grid])
         return bool(abs(shift) > threshold)
 
-    def _relearn_after_light_switch(self, gray: GrayImage, threshold: float) -> MotionResult:
+    def _relearn_after_light_switch(self, gray: GrayImage, threshold: float) -> None:
         """Take this frame as the background, except where something was moving.
 
         An object in view when the light changes would otherwise become
@@ -398,14 +399,18 @@ class AdaptiveBackground(MotionMethod):
         over a few frames, not objects: the frame is all taken.
         """
         assert self._background is not None and self._previous_mask is not None
-        old_background, moving = self._background, self._previous_mask
-        result = self._learn(gray)
-        if not moving.any():
-            return result
+        old_background, moving, anything_moved = (
+            self._background,
+            self._previous_mask,
+            self._previous_moving > 0,
+        )
+        self._learn(gray)
+        if not anything_moved:
+            return
         kept = cv2.dilate(moving, self._guard_kernel)
         kept_pixels = cv2.countNonZero(kept)
         if kept_pixels > self.light_switch_fraction * kept.size:
-            return result
+            return
         assert self._background is not None and self._settled is not None
         where = kept != 0
         # Not the last mask's still pixels: the object has stepped onto some of them.
@@ -415,7 +420,6 @@ class AdaptiveBackground(MotionMethod):
         self._settled[where] = 0
         self._previous_mask = kept
         self._previous_moving = kept_pixels
-        return MotionResult(np.zeros_like(gray), np.zeros_like(gray), threshold)
 
     def _gain(self, gray: GrayImage) -> float:
         """Brightness ratio of frame to background over pixels that look like background.

@@ -5,45 +5,16 @@ from __future__ import annotations
 import csv
 import json
 import statistics
-import subprocess
-import sys
 from pathlib import Path
 
 import cv2
 import numpy as np
 import pytest
 
-from app.sources.synthetic import MovingObject, Scene
-from tests.conftest import ROOT, decode_all, write_scene_video
+from tests.analysis.walker import WALKER, vigil
+from tests.conftest import decode_all, write_scene_video
 
 HEADER = "frame,time_s,track_id,x,y,w,h,cx,cy,area,distance_px,speed_px_s"
-
-# Someone steps out at frame 3 and walks right at a known speed until frame 50.
-WALKER = Scene(
-    name="walker",
-    size=(320, 240),
-    fps=15.0,
-    frames=75,
-    objects=(MovingObject((0, 100), (60.0, 0.0), (30, 44), 210, first_frame=3, last_frame=50),),
-)
-
-
-def vigil(*args: str | Path, cwd: Path = ROOT) -> subprocess.CompletedProcess[str]:
-    return subprocess.run(
-        [sys.executable, "-m", "app", *map(str, args)],
-        capture_output=True,
-        text=True,
-        cwd=cwd,
-        timeout=240,
-    )
-
-
-@pytest.fixture(scope="module")
-def box_truth(tmp_path_factory) -> Path:
-    frames = {str(i): [t.box.as_list() for t in WALKER.truth(i)] for i in range(WALKER.frames)}
-    path = tmp_path_factory.mktemp("truth") / "truth.json"
-    path.write_text(json.dumps({"frames": frames}))
-    return path
 
 
 @pytest.fixture(scope="module")

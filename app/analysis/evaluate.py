@@ -29,7 +29,10 @@ def evaluate(out_dir: Path, truth_path: Path) -> dict[str, Any]:
         )
     try:
         report = json.loads(report_path.read_text())
-        frames = int(report["frames"])
+        # tracks.csv and truth go by decode index: the frames read, less the ones that
+        # did not decode (reports before those keys: every frame decoded).
+        frames_read = int(report.get("frames_read", report["frames"]))
+        skipped = {int(index) for index in report.get("skipped_frames", [])}
         min_area = float(report["settings"]["min_area"])
         width, height = (int(side) for side in report["size"])
     except (OSError, ValueError, KeyError, TypeError) as exc:
@@ -40,7 +43,7 @@ def evaluate(out_dir: Path, truth_path: Path) -> dict[str, Any]:
     masks_dir = out_dir / "masks"
     scorer = Scorer(truth, min_area, (width, height))
     for index in truth.frames:
-        if index >= frames:
+        if index >= frames_read or index in skipped:
             continue
         mask_path = masks_dir / f"{index:06d}.png"
         mask = cv2.imread(str(mask_path), cv2.IMREAD_GRAYSCALE) if mask_path.is_file() else None

@@ -61,6 +61,18 @@ def test_a_frame_that_does_not_decode_is_skipped_and_the_analysis_carries_on(
     assert cv2.absdiff(annotated[21], annotated[19]).max() > 0
 
 
+def test_evaluate_rescores_a_folder_with_a_skipped_frame_as_analyze_scored_it(
+    tmp_path, walker_video, box_truth
+):
+    damaged = garble_frames(walker_video, [20, 21, 22], tmp_path / "damaged.avi")
+    out = tmp_path / "out"
+    assert vigil("analyze", damaged, "--out", out, "--truth", box_truth, "--quiet").returncode == 0
+    result = vigil("evaluate", out, "--truth", box_truth)
+    assert result.returncode == 0, result.stderr
+    # The skipped frames are no misses, and the last frames are scored too.
+    assert json.loads(result.stdout)["objects"] == _report(out)["evaluation"]["objects"]
+
+
 def test_many_damaged_frames_are_each_counted(tmp_path, walker_video):
     bad = [0, 10, 11, 12, 30, 74]
     out = tmp_path / "out"

@@ -10,7 +10,7 @@ from typing import Any
 import httpx
 import pytest
 
-from tests.api.vigil_livekit import Running, wait_for, write_video
+from tests.api.vigil_livekit import Running, wait_for, wait_for_pictures, write_video
 
 pytestmark = pytest.mark.browser
 
@@ -28,11 +28,7 @@ def test_dashboard_in_chromium(
     page.goto(base + "/")
 
     # The demo camera's picture renders.
-    page.wait_for_function(
-        "() => [...document.querySelectorAll('.card img.live')]"
-        ".filter(i => i.naturalWidth > 0).length >= 2",
-        timeout=20000,
-    )
+    wait_for_pictures(page, 2, timeout_ms=20000, at_least=True)
     card = page.locator(f'.card[data-id="{lane}"]')
     assert card.locator(".state").inner_text() == "live"
 
@@ -89,11 +85,7 @@ def test_more_cameras_than_connections_all_show(
         ).raise_for_status()
     page.goto(server.base + "/")
     # Seven pictures at once: more than a browser's six connections could stream.
-    page.wait_for_function(
-        "() => [...document.querySelectorAll('.card img.live')]"
-        ".filter(i => i.naturalWidth > 0).length === 7",
-        timeout=30000,
-    )
+    wait_for_pictures(page, 7, timeout_ms=30000)
     sources = page.locator(".card img.live").evaluate_all("imgs => imgs.map(i => i.src)")
     # Four streams (the browser's connection budget, less two for the rest); polled after.
     assert ["/stream.mjpg" in s for s in sources] == [True] * 4 + [False] * 3, sources

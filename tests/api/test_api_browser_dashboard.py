@@ -24,15 +24,17 @@ from tests.api.vigil_livekit import (
     live_settings,
     running_server,
     wait_for,
+    wait_for_pictures,
 )
 
 pytestmark = pytest.mark.browser
 
 PICTURE_HASHES = """(selector) => [...document.querySelectorAll(selector)].map((img) => {
+  if (!img.naturalWidth) return null;  // no frame (yet): blank, loading or broken
   const canvas = document.createElement('canvas');
   canvas.width = 64; canvas.height = 48;
   const context = canvas.getContext('2d');
-  try { context.drawImage(img, 0, 0, 64, 48); } catch (e) { return -1; }  // broken
+  try { context.drawImage(img, 0, 0, 64, 48); } catch (e) { return null; }
   const data = context.getImageData(0, 0, 64, 48).data;
   let hash = 0;
   for (let i = 0; i < data.length; i += 3) hash = (hash * 31 + data[i]) >>> 0;
@@ -41,14 +43,16 @@ PICTURE_HASHES = """(selector) => [...document.querySelectorAll(selector)].map((
 
 
 def pictures_move(page: Any, selector: str = ".card img.live", seconds: float = 4.0) -> list[bool]:
-    """Whether each picture showed more than one frame in ``seconds``."""
+    """Whether each picture showed more than one frame in ``seconds`` (a blank or broken
+    picture is no frame: going from blank to one frame is no movement)."""
     seen: list[set[int]] = []
     deadline = time.monotonic() + seconds
     while time.monotonic() < deadline:
         hashes = page.evaluate(PICTURE_HASHES, selector)
         seen = seen or [set() for _ in hashes]
         for known, value in zip(seen, hashes, strict=True):
-            known.add(value)
+            if value is not None:
+                known.add(value)
         page.wait_for_timeout(200)
     return [len(known) > 1 for known in seen]
 
@@ -87,11 +91,7 @@ def test_pictures_come_back_after_a_server_restart_and_cards_say_when_it_is_away
         add_camera(server.base, f"file://{motion_video}", name="lane")
         add_camera(server.base, f"file://{motion_video}", name="road")
         page.goto(server.base + "/")
-        page.wait_for_function(
-            "() => [...document.querySelectorAll('.card img.live')]"
-            ".filter(i => i.naturalWidth > 0).length === 2",
-            timeout=20000,
-        )
+        wait_for_pictures(page, 2, timeout_ms=20000)
         assert all(pictures_move(page))
     # The server is away: no card claims to be live, none shows a frame rate.
     page.wait_for_function(
@@ -363,11 +363,7 @@ def test_many_cameras_stream_what_connections_allow_and_poll_the_rest_at_their_r
     for i in range(6):
         add_camera(server.base, f"file://{motion_video}", name=f"cam{i}")
     page.goto(server.base + "/")
-    page.wait_for_function(
-        "() => [...document.querySelectorAll('.card img.live')]"
-        ".filter(i => i.naturalWidth > 0).length === 6",
-        timeout=30000,
-    )
+    wait_for_pictures(page, 6, timeout_ms=30000)
     sources = page.locator(".card img.live").evaluate_all("imgs => imgs.map(i => i.src)")
     assert ["stream.mjpg" in s for s in sources] == [True] * 4 + [False] * 2, sources
     polled: Counter[str] = Counter()
@@ -392,11 +388,7 @@ def test_a_stream_that_becomes_polled_while_the_page_is_hidden_closes_its_connec
     server = serve()
     ids = [add_camera(server.base, f"file://{motion_video}", name=f"cam{i}") for i in range(4)]
     page.goto(server.base + "/")
-    page.wait_for_function(
-        "() => [...document.querySelectorAll('.card img.live')]"
-        ".filter(i => i.naturalWidth > 0).length === 4",
-        timeout=30000,
-    )
+    wait_for_pictures(page, 4, timeout_ms=30000)
     last = page.locator(f'.card[data-id="{ids[3]}"] img.live')
     stream = f"/api/cameras/{ids[3]}/stream.mjpg"
     assert stream in (last.get_attribute("src") or "")

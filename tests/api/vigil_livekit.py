@@ -94,6 +94,16 @@ def wait_for(
 ROOT = Path(__file__).resolve().parents[2]
 
 
+def wait_for_pictures(
+    page: Any, count: int, timeout_ms: int = 30000, at_least: bool = False
+) -> None:
+    """Until ``count`` camera pictures (``at_least``: that many or more) show a frame."""
+    shown = "[...document.querySelectorAll('.card img.live')].filter(i => i.naturalWidth > 0)"
+    page.wait_for_function(
+        f"() => {shown}.length {'>=' if at_least else '==='} {count}", timeout=timeout_ms
+    )
+
+
 def add_camera(
     base: str, source: str, name: str = "lane", activate: bool = False, **extra: Any
 ) -> int:

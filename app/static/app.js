@@ -166,7 +166,7 @@ $("#mute").addEventListener("click", () => {
 function toast(html, kind = "alarm", key = null) {
   const box = $("#toasts");
   key = key || `${kind}:${html}`;
-  let el = $$(".toast", box).find((t) => t.dataset.key === key);
+  let el = findToast(key);
   if (el) {
     clearTimeout(el._timer);
     el._repeats = (el._repeats || 1) + 1;
@@ -183,6 +183,10 @@ function toast(html, kind = "alarm", key = null) {
   el._timer = setTimeout(() => removeToast(el), kind === "error" ? 12000 : 8000);
   layoutToasts();
   return el;
+}
+
+function findToast(key) {
+  return $$("#toasts > .toast").find((t) => t.dataset.key === key);
 }
 
 function removeToast(el) {
@@ -688,7 +692,7 @@ function alarmKey(cameraId, eventId, ts) {
 
 /* "Clear list" hides, across reloads, the events that started up to the newest one the
    page had heard of: a time on the server's clock, as the events' started_at are (the
-   browser's clock may be off by minutes or hours). The old key held the browser's clock. */
+   browser's clock may be off by minutes or hours). */
 const CLEARED_KEY = "vigil.alarmsClearedThrough";
 
 function noteEventTime(ts) {
@@ -699,7 +703,7 @@ function noteEventTime(ts) {
    updated by the next alarms of the event and by its motion_end. */
 function alarmItem(key, cameraId, eventId, started) {
   let item = state.alarmItems.get(key);
-  if (item) return { item, fresh: false };
+  if (item) return item;
   item = document.createElement("li");
   if (eventId !== null && eventId !== undefined) item.dataset.event = eventId;
   item.dataset.camera = cameraId;
@@ -708,7 +712,7 @@ function alarmItem(key, cameraId, eventId, started) {
     <span class="objects"></span><br><span class="ongoing">moving…</span> <span class="links"></span></div>`;
   $(".when", item).textContent = fmtDate(started);
   state.alarmItems.set(key, item);
-  return { item, fresh: true };
+  return item;
 }
 
 function setAlarmPicture(item, snapshot, difference) {
@@ -744,14 +748,14 @@ function onAlarm(message) {
   noteCamera(message.camera_id);
   noteEventTime(message.ts);
   const key = alarmKey(message.camera_id, message.event_id, message.ts);
-  const { item, fresh } = alarmItem(key, message.camera_id, message.event_id, message.ts);
+  const item = alarmItem(key, message.camera_id, message.event_id, message.ts);
   item._alarms = (item._alarms || 0) + 1;
   $(".who", item).textContent = name;
   $(".alarms", item).textContent = item._alarms > 1 ? `(${item._alarms} alarms, last at ${fmtTime(message.ts)})` : "";
   $(".objects", item).textContent = `${plural(count, "object")}: ${objectsText(message)}`;
   // No snapshot when the disk refused it (full, read-only): the event still counts.
   setAlarmPicture(item, message.snapshot, message.difference);
-  if (fresh || item !== $("#alarm-list").firstElementChild) $("#alarm-list").prepend(item);
+  $("#alarm-list").prepend(item);  // On top: new, or its event moving again.
   trimAlarmList();
 
   const repeats = item._alarms > 1 ? ` <span class="repeats">×${item._alarms}</span>` : "";
@@ -770,9 +774,10 @@ function onAlarm(message) {
 }
 
 function onMotionEnd(message) {
-  const item = state.alarmItems.get(alarmKey(message.camera_id, message.event_id, message.ts));
+  const key = alarmKey(message.camera_id, message.event_id, message.ts);
+  const item = state.alarmItems.get(key);
   if (item) setAlarmEnded(item, message.duration_s, message.max_area);
-  const shown = $$("#toasts > .toast").find((t) => t.dataset.key === `alarm:e${message.event_id}`);
+  const shown = findToast(`alarm:${key}`);
   if (shown) shown.classList.add("ended");
 }
 
@@ -806,7 +811,7 @@ async function loadRecentAlarms() {
   for (const event of recent) {  // Newest first, after any alarm that came meanwhile.
     const key = alarmKey(event.camera_id, event.id, event.started_at);
     if (state.alarmItems.has(key)) continue;
-    const { item } = alarmItem(key, event.camera_id, event.id, event.started_at);
+    const item = alarmItem(key, event.camera_id, event.id, event.started_at);
     $(".who", item).textContent = cameraName(event.camera_id);
     $(".objects", item).textContent = `${plural((event.boxes || []).length, "object")}`
       + `${event.boxes && event.boxes.length ? `: ${objectsText(event)}` : ""}`;

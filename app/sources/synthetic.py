@@ -61,6 +61,10 @@ class Scene:
     objects: tuple[MovingObject, ...] = ()
     light_switch_frame: int | None = None
     light_gain: float = 1.7
+    camera_move_frame: int | None = None
+    camera_move: tuple[int, int] = (0, 0)
+    """From ``camera_move_frame`` on, the camera has been knocked (dx, dy) pixels: all it
+    sees, objects included, is that much the other way."""
     sway_region: tuple[int, int, int, int] | None = None
     """x, y, w, h of a patch of foliage that sways from side to side."""
     seed: int = 7
@@ -112,6 +116,10 @@ class Scene:
             self._paste(image, self._object_texture(i, obj), obj.box_at(time_s))
         if self.light_switch_frame is not None and index >= self.light_switch_frame:
             image = image * self.light_gain * self._cache["ramp"] + 10.0
+        if self._camera_moved(index):
+            dx, dy = self.camera_move
+            view = np.array([[1.0, 0.0, -dx], [0.0, 1.0, -dy]])
+            image = cv2.warpAffine(image, view, self.size, borderMode=cv2.BORDER_REFLECT)
         rng = np.random.default_rng(self.seed * 1_000_003 + index)
         image = image + rng.normal(0.0, self.noise_sigma, image.shape)
         gray = np.clip(image, 0, 255).astype(np.uint8)
@@ -126,6 +134,8 @@ class Scene:
             if not self._alive(obj, index):
                 continue
             x, y, bw, bh = obj.box_at(time_s)
+            if self._camera_moved(index):
+                x, y = x - self.camera_move[0], y - self.camera_move[1]
             x0, y0 = max(0, math.floor(x)), max(0, math.floor(y))
             x1, y1 = min(w, math.ceil(x + bw)), min(h, math.ceil(y + bh))
             if x1 <= x0 or y1 <= y0:
@@ -138,6 +148,9 @@ class Scene:
     def frames_iter(self) -> Iterator[Image]:
         for index in range(self.frames):
             yield self.frame(index)
+
+    def _camera_moved(self, index: int) -> bool:
+        return self.camera_move_frame is not None and index >= self.camera_move_frame
 
     @staticmethod
     def _alive(obj: MovingObject, index: int) -> bool:
@@ -259,6 +272,14 @@ def standard_scenes() -> dict[str, Scene]:
             frames=90,
             min_visible_fraction=0.05,
             objects=(MovingObject((-260, 20), (60.0, 0.0), (250, 200), 30, first_frame=5),),
+        ),
+        # A camera knocked 6 pixels right and 3 down while someone crosses its view.
+        "knocked": Scene(
+            name="knocked",
+            frames=90,
+            camera_move_frame=45,
+            camera_move=(6, 3),
+            objects=(MovingObject((-20, 100), (45.0, 0.0), (28, 44), 200, first_frame=5),),
         ),
         "swaying": Scene(
             name="swaying",

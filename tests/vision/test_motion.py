@@ -87,16 +87,57 @@ def test_adaptive_relearns_a_light_switch_instead_of_reporting_it():
         result = method.apply(lit)
 
 
-def test_adaptive_takes_a_camera_knock_for_motion_not_for_a_light_switch():
+def viewed_from(scene, dx, dy):
+    """``scene`` as a camera moved (dx, dy) pixels sees it: its content moves the other way."""
+    move = np.array([[1.0, 0.0, -dx], [0.0, 1.0, -dy]])
+    return cv2.warpAffine(scene, move, scene.shape[::-1], borderMode=cv2.BORDER_REFLECT)
+
+
+def smooth_texture(seed):
+    rng = np.random.default_rng(seed)
+    texture = cv2.GaussianBlur(rng.normal(0.0, 1.0, SIZE), (0, 0), 2.0)
+    return np.clip(110 + 40 * texture / texture.std(), 0, 255).astype(np.uint8)
+
+
+def test_adaptive_follows_a_camera_that_was_knocked_and_still_finds_what_moves():
     method = AdaptiveBackground()
-    background = textured_background(1)
+    background = smooth_texture(2)
+    for step in range(30):
+        method.apply(with_square(background, 20 + step, 50, size=16))
+    # Knocked 6 pixels right and 4 down, for good, while the square moves on.
+    for step in range(30, 40):
+        frame = viewed_from(with_square(background, 20 + step, 50, size=16), 6, 4)
+        result = method.apply(frame)
+        assert result.global_change == (step == 30)
+        square = result.mask[46:62, 14 + step : 30 + step]  # Where the camera now sees it.
+        assert np.count_nonzero(square) > 0.8 * square.size
+        assert np.count_nonzero(result.mask) < 1.3 * square.size
+
+
+def test_adaptive_keeps_finding_what_moves_in_front_of_a_shaking_camera():
+    method = AdaptiveBackground()
+    background = smooth_texture(3)
     for _ in range(20):
         method.apply(background)
-    # Shifted two pixels: edges everywhere, brighter on one side and darker on the other.
-    knocked = np.roll(background, 2, axis=1)
-    result = method.apply(knocked)
+    for step in range(20):
+        shake = 3 if step % 2 else -3
+        frame = viewed_from(with_square(background, 30 + 2 * step, 50, size=16), shake, 0)
+        result = method.apply(frame)
+        left = 30 + 2 * step - shake
+        square = result.mask[52:64, left + 2 : left + 14]
+        assert np.count_nonzero(square) > 0.8 * square.size
+
+
+def test_adaptive_does_not_take_a_big_object_stepping_in_for_a_camera_move():
+    method = AdaptiveBackground()
+    background = smooth_texture(4)
+    for _ in range(25):
+        method.apply(background)
+    frame = background.copy()
+    frame[20:100, 30:110] = smooth_texture(5)[20:100, 30:110]  # A third of the view at once.
+    result = method.apply(frame)
     assert not result.global_change
-    assert result.mask.any()
+    assert np.count_nonzero(result.mask[20:100, 30:110]) > 0.8 * 80 * 80
 
 
 @pytest.mark.parametrize("grey", [20, 220])

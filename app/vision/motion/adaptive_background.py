@@ -17,6 +17,12 @@ A running-average background (the classic of Motion and of OpenCV's
   from the old background to the new frame, so an object in view stays an
   object. The noise estimate learns only from frames that were no light
   switch, and from still pixels only when much of the frame moves.
+* **A camera that is knocked or turned** — where much of the view turns
+  "moving" at once and is no light switch, the shift of the view is sought
+  (template matching of the frame's middle against the background); if the
+  background moved by it explains the change, the whole model moves with the
+  view and the frame is compared again, so what moves in it is still found
+  and the scene is not reported as motion.
 * **A second background mode** — each pixel keeps an alternate value beside
   its main one (a cheap two-mode mixture, after Stauffer and Grimson, 1999):
   leaf against sky, an edge that a shaking camera moves back and forth. The
@@ -63,6 +69,7 @@ from __future__ import annotations
 import math
 from collections import deque
 from collections.abc import Sequence
+from dataclasses import replace
 
 import cv2
 import numpy as np
@@ -99,6 +106,21 @@ still pixels around an object some sixty pixels across."""
 
 LIGHT_WINDOW_LEAST = 0.05
 """The least (weighted) share of still pixels a window needs for its own fit."""
+
+CAMERA_MOVE_SHARE = 0.2
+"""The share of the frame that must turn "moving" at once (and twice the last frame's
+motion) for the camera to be suspected of having moved: a knock on a plain scene
+changes little more than its edges."""
+
+CAMERA_MOVE_REACH = 0.08
+"""The largest shift of the view sought, as a share of the frame's width."""
+
+CAMERA_MOVE_LEAST = 0.5
+"""Pixels: the least shift of the view taken for a camera that moved."""
+
+CAMERA_MOVE_LEFT = 0.25
+"""A shift explains a change when, with the background moved by it, at most this share
+of the pixels that differed still differ (the objects in view)."""
 
 CROWDED_SHARE = 0.4
 """The share of the frame moving past which the noise is measured on still pixels only."""
@@ -192,12 +214,18 @@ class AdaptiveBackground(MotionMethod):
         gray = np.ascontiguousarray(gray)
         if self._background is None or self._background.shape != gray.shape:
             return self._learn(gray)
+        self._frame_index += 1
+        return self._step(gray, camera_may_have_moved=True)
+
+    def _step(self, gray: GrayImage, camera_may_have_moved: bool) -> MotionResult:
+        """This frame against the model; ``camera_may_have_moved`` is False once the
+        model has been moved with the view for it."""
+        assert self._background is not None
         assert self._alternate is not None and self._weight is not None
         assert self._deviation is not None and self._buffers is not None
         assert self._recent and self._previous_raw is not None
         assert self._previous_mask is not None and self._settled is not None
         buffers = self._buffers
-        self._frame_index += 1
 
         established_weight = 255.0 * self.mode_weight
         difference = np.empty_like(gray)
@@ -235,6 +263,14 @@ class AdaptiveBackground(MotionMethod):
             self._relearn_after_light_switch(gray, threshold)
             still = np.zeros_like(gray)
             return MotionResult(still, difference, threshold, global_change=True)
+        # A sudden change over much of the view that is no light: the camera may have
+        # been knocked or turned (or something big stepped in front of it: motion).
+        sudden = moving > CAMERA_MOVE_SHARE * raw.size and moving > 2 * self._previous_moving
+        if camera_may_have_moved and sudden:
+            shift = self._camera_shift(gray, threshold)
+            if shift is not None:
+                self._follow_camera(gray, *shift)
+                return replace(self._step(gray, camera_may_have_moved=False), global_change=True)
         # After the light-switch test: the change a light switch makes is not noise, and
         # a noise estimate that took it in would raise the threshold past it and hide
         # the switch (and everything else) until it had decayed. The estimate (a
@@ -421,6 +457,66 @@ class AdaptiveBackground(MotionMethod):
         self._previous_mask = kept
         self._previous_moving = kept_pixels
 
+    def _camera_shift(self, gray: GrayImage, threshold: float) -> tuple[float, float] | None:
+        """How far (x, y pixels) the view moved, where the camera was knocked or turned:
+        the shift, up to ``CAMERA_MOVE_REACH``, by which the background best matches the
+        frame, if the background moved that far matches it at all but a small share
+        (``CAMERA_MOVE_LEFT``) of the pixels that differ from it as it is. None where
+        no shift does: something big stepped into view."""
+        assert self._background is not None
+        height, width = gray.shape
+        reach = max(2, round(CAMERA_MOVE_REACH * width))
+        if min(height, width) <= 4 * reach:
+            return None
+        frame = gray.astype(np.float32)
+        # Where the frame's middle fits in the background: a squared difference per shift.
+        misfit = cv2.matchTemplate(
+            self._background, frame[reach:-reach, reach:-reach], cv2.TM_SQDIFF
+        )
+        _, _, (left, top), _ = cv2.minMaxLoc(misfit)
+        dx = reach - (left + _vertex_offset(misfit[top, left - 1 : left + 2]))
+        dy = reach - (top + _vertex_offset(misfit[top - 1 : top + 2, left]))
+        if math.hypot(dx, dy) < CAMERA_MOVE_LEAST:
+            return None
+        # Compared where both views see the scene, on a grid (as the gain is).
+        margin_x, margin_y = math.ceil(abs(dx)) + 1, math.ceil(abs(dy)) + 1
+        inside = (
+            slice(margin_y, height - margin_y, GAIN_GRID),
+            slice(margin_x, width - margin_x, GAIN_GRID),
+        )
+        moved = _shifted(self._background, dx, dy, np.zeros_like(frame))
+        before = np.count_nonzero(np.abs(frame[inside] - self._background[inside]) > threshold)
+        after = np.count_nonzero(np.abs(frame[inside] - moved[inside]) > threshold)
+        return (dx, dy) if before and after <= CAMERA_MOVE_LEFT * before else None
+
+    def _follow_camera(self, gray: GrayImage, dx: float, dy: float) -> None:
+        """Move the whole model (dx, dy) pixels with the view, so that the scene is
+        where the camera now sees it and only what moves in it is motion. The strip
+        that came into view takes this frame as its background, with nothing learned
+        about it yet (no alternate, no variability, not settled, never still)."""
+        assert self._background is not None and self._alternate is not None
+        assert self._weight is not None and self._deviation is not None
+        assert self._previous_mask is not None and self._previous_raw is not None
+        assert self._settled is not None and self._still_frames is not None
+        frame = gray.astype(np.float32)
+
+        def moved(image: np.ndarray, smooth: bool = True) -> np.ndarray:
+            return _shifted(image, dx, dy, np.zeros_like(image), smooth)
+
+        self._background = _shifted(self._background, dx, dy, frame.copy())
+        self._alternate = _shifted(self._alternate, dx, dy, frame)
+        self._weight = moved(self._weight)
+        self._deviation = moved(self._deviation)
+        self._recent = deque(
+            (_shifted(seen, dx, dy, gray.copy()) for seen in self._recent),
+            maxlen=self.check_every,
+        )
+        self._previous_mask = moved(self._previous_mask, smooth=False)
+        self._previous_raw = moved(self._previous_raw, smooth=False)
+        self._previous_moving = cv2.countNonZero(self._previous_mask)
+        self._settled = moved(self._settled, smooth=False)
+        self._still_frames = moved(self._still_frames, smooth=False)
+
     def _gain(self, gray: GrayImage) -> float:
         """Brightness ratio of frame to background over pixels that look like background.
 
@@ -471,6 +567,29 @@ class AdaptiveBackground(MotionMethod):
         self._still_frames = None
         self._settled = None
         self._frame_index = 0
+
+
+def _vertex_offset(values: np.ndarray) -> float:
+    """Where, from the middle one (-0.5..0.5), the parabola through three values
+    turns: a minimum's place between pixels. 0 at an edge of the search."""
+    if values.size != 3:
+        return 0.0
+    before, middle, after = (float(v) for v in values)
+    curvature = before - 2.0 * middle + after
+    return 0.5 * (before - after) / curvature if curvature > 0 else 0.0
+
+
+def _shifted(
+    image: np.ndarray, dx: float, dy: float, into: np.ndarray, smooth: bool = True
+) -> np.ndarray:
+    """``image`` moved (dx, dy) pixels, drawn over ``into``, which shows where nothing of
+    ``image`` lands: bilinear (``smooth``, for grey levels), or nearest (masks, counts)."""
+    move = np.array([[1.0, 0.0, dx], [0.0, 1.0, dy]])
+    flags = cv2.INTER_LINEAR if smooth else cv2.INTER_NEAREST
+    size = (image.shape[1], image.shape[0])
+    return cv2.warpAffine(
+        image, move, size, dst=into, flags=flags, borderMode=cv2.BORDER_TRANSPARENT
+    )
 
 
 def relit(background: FloatImage, frame: GrayImage, still: np.ndarray, ridge: float) -> FloatImage:

@@ -19,8 +19,9 @@ class MotionResult:
     ``mask`` is 255 where something moves; ``difference`` is the grey-level
     change the method thresholded (the paper's difference image, for
     snapshots and for tuning the sensitivity by eye); ``global_change`` is
-    True when the whole scene changed at once (a light switched) and the
-    method re-learned it instead of reporting motion.
+    True when the whole view changed at once (a light switched, the camera
+    moved) and the method re-learned it, or moved its model with it, instead
+    of reporting the change as motion.
     """
 
     mask: Mask

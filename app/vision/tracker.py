@@ -57,6 +57,9 @@ class Track:
     """Where the track was first seen."""
     moved: bool = False
     """Whether it has ever been further than ``in_place_px`` from its origin."""
+    extent: tuple[float, float] = (0.0, 0.0)
+    """Width and height of the object as lately seen in one piece: the largest of its
+    boxes, each frame forgetting ``extent_forget`` of what it was beyond the newest."""
 
     @property
     def last_centroid(self) -> Point:
@@ -89,6 +92,12 @@ class TrackerConfig:
     one's speed move as one: the blob is one object's, not a crossing to split."""
     smoothing_window_s: float = 0.6
     """Span of history the velocity fit looks at."""
+    extent_forget: float = 0.02
+    """The share of a track's remembered size it forgets per sighting (a half-life of
+    about 35 frames), so that it follows an object that goes away from the camera."""
+    piece_slack: float = 0.2
+    """A left-over blob joins a track's blob when together they fit the track's
+    remembered size grown by this share (and a pixel each way)."""
     max_objects: int = 64
     """Largest blobs kept per frame: past this a frame is noise, and assignment cost grows."""
 
@@ -111,12 +120,15 @@ class Tracker:
             detections, tracks, predictions
         )
         matches, unmatched = self._assign(detections, tracks, predictions)
+        assigned, unmatched = self._join_pieces(
+            [(track, detections[i]) for i, track in matches], detections, unmatched
+        )
 
         reported: list[Detection] = []
         matched = set()
-        for track, detection in merged + [(track, detections[i]) for i, track in matches]:
+        for track, detection, whole in [(t, d, True) for t, d in merged] + assigned:
             matched.add(track.key)
-            extended = self._extend(track, detection, time_s)
+            extended = self._extend(track, detection, time_s, whole)
             if extended is not None:
                 reported.append(extended)
         for track in self.tracks.values():
@@ -274,12 +286,48 @@ class Tracker:
                     return True
         return False
 
-    def _extend(self, track: Track, detection: Detection, time_s: float) -> Detection | None:
+    def _join_pieces(
+        self,
+        pairs: list[tuple[Track, Detection]],
+        detections: list[Detection],
+        unmatched: list[int],
+    ) -> tuple[list[tuple[Track, Detection, bool]], list[int]]:
+        """Blobs that no track took and that are pieces of a tracked object, joined to its
+        blob: where part of an object matches the background (a grey coat on a grey
+        wall) its blob breaks in two, and the piece would start a second track beside
+        the first. A piece joins a confirmed track's blob when the two together fit the
+        object's remembered size (``Track.extent``, ``piece_slack``); two objects side
+        by side do not. Returns each track's detection with whether it is one blob
+        (whole), and the blobs left over."""
+        left = list(unmatched)
+        joined: list[tuple[Track, Detection, bool]] = []
+        for track, detection in pairs:
+            whole = True
+            if track.track_id and left:
+                grow = 1.0 + self.config.piece_slack
+                width, height = grow * track.extent[0] + 2.0, grow * track.extent[1] + 2.0
+                nearest_first = sorted(
+                    left, key=lambda i: math.dist(detections[i].centroid, detection.centroid)
+                )
+                for index in nearest_first:
+                    together = _together(detection, detections[index])
+                    if together.box.w <= width and together.box.h <= height:
+                        detection, whole = together, False
+                        left.remove(index)
+            joined.append((track, detection, whole))
+        return joined, left
+
+    def _extend(
+        self, track: Track, detection: Detection, time_s: float, whole: bool
+    ) -> Detection | None:
+        """``whole``: the detection is one blob, from which the track learns its size."""
         position = sighting_position(detection)
         step = step_length(track.sightings.last_position, position)
         track.hits += 1
         track.missed = 0
         track.box = detection.box
+        if whole:
+            track.extent = self._extent(track.extent, detection.box)
         track.sightings.add(time_s, position)
         track.trail.append(detection.centroid)
         track.moved = track.moved or math.dist(detection.centroid, track.origin) > (
@@ -297,6 +345,7 @@ class Tracker:
             box=detection.box,
             origin=detection.centroid,
             sightings=VelocityWindow(self.config.smoothing_window_s),
+            extent=(detection.box.w, detection.box.h),
         )
         self._next_key += 1
         track.sightings.add(time_s, sighting_position(detection))
@@ -305,11 +354,28 @@ class Tracker:
         self._confirm_if_due(track)
         return track
 
+    def _extent(self, extent: tuple[float, float], box: Box) -> tuple[float, float]:
+        keep = 1.0 - self.config.extent_forget
+        return (max(float(box.w), keep * extent[0]), max(float(box.h), keep * extent[1]))
+
     def _confirm_if_due(self, track: Track) -> None:
         needed = self.config.min_hits if track.moved else self.config.min_hits_in_place
         if not track.track_id and track.hits >= max(self.config.min_hits, needed):
             track.track_id = self._next_id
             self._next_id += 1
+
+
+def _together(first: Detection, second: Detection) -> Detection:
+    """Two blobs as one object's: the box around both, their pixels, their centroid."""
+    x0, y0 = min(first.box.x, second.box.x), min(first.box.y, second.box.y)
+    x1 = max(first.box.x + first.box.w, second.box.x + second.box.w)
+    y1 = max(first.box.y + first.box.h, second.box.y + second.box.h)
+    area = first.area + second.area
+    centroid = (
+        (first.centroid[0] * first.area + second.centroid[0] * second.area) / area,
+        (first.centroid[1] * first.area + second.centroid[1] * second.area) / area,
+    )
+    return Detection(Box(x0, y0, x1 - x0, y1 - y0), centroid, area, first.edges | second.edges)
 
 
 def _contains(box: Box, point: Point) -> bool:

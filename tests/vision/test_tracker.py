@@ -118,6 +118,33 @@ def test_an_object_split_in_two_for_a_while_is_one_object_again_when_it_joins_up
     assert out[-1][0].speed_px_s == pytest.approx(40.0, abs=2.0)
 
 
+def test_an_object_that_breaks_into_pieces_stays_one_track_with_one_box():
+    tracker = Tracker()
+    frames = []
+    for i in range(30):
+        x = 10 + 3 * i
+        if 10 <= i < 20:  # Its middle matches the background: head and legs apart.
+            frames.append([det(x, 40, 20, 18), det(x, 72, 20, 18)])
+        else:
+            frames.append([det(x, 40, 20, 50)])
+    out = run(tracker, frames)
+    for i, frame in enumerate(out[1:], start=1):
+        assert [d.track_id for d in frame] == [1]
+        assert frame[0].box == Box(10 + 3 * i, 40, 20, 50)
+    assert out[-1][0].speed_px_s == pytest.approx(30.0, rel=0.01)
+
+
+def test_an_object_that_comes_into_view_beside_a_tracked_one_has_its_own_track():
+    tracker = Tracker()
+    frames = [
+        [det(10 + 3 * i, 40, 20, 50)] + ([det(36 + 3 * i, 40, 20, 50)] if i >= 10 else [])
+        for i in range(20)
+    ]
+    out = run(tracker, frames)
+    assert [d.track_id for d in out[-1]] == [1, 2]
+    assert [d.box.w for d in out[-1]] == [20, 20]
+
+
 def test_object_hidden_for_a_few_frames_keeps_its_id():
     tracker = Tracker()
     frames = [[det(10 + 5 * i, 30)] if not 10 <= i < 14 else [] for i in range(25)]

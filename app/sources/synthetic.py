@@ -62,7 +62,7 @@ class Scene:
     light_switch_frame: int | None = None
     light_gain: float = 1.7
     camera_move_frame: int | None = None
-    camera_move: tuple[int, int] = (0, 0)
+    camera_move: tuple[float, float] = (0.0, 0.0)
     """From ``camera_move_frame`` on, the camera has been knocked (dx, dy) pixels: all it
     sees, objects included, is that much the other way."""
     sway_region: tuple[int, int, int, int] | None = None
@@ -273,12 +273,12 @@ def standard_scenes() -> dict[str, Scene]:
             min_visible_fraction=0.05,
             objects=(MovingObject((-260, 20), (60.0, 0.0), (250, 200), 30, first_frame=5),),
         ),
-        # A camera knocked 6 pixels right and 3 down while someone crosses its view.
+        # A camera knocked 5.5 pixels right and 2.5 down while someone crosses its view.
         "knocked": Scene(
             name="knocked",
             frames=90,
             camera_move_frame=45,
-            camera_move=(6, 3),
+            camera_move=(5.5, 2.5),
             objects=(MovingObject((-20, 100), (45.0, 0.0), (28, 44), 200, first_frame=5),),
         ),
         "swaying": Scene(

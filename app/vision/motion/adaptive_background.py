@@ -17,12 +17,14 @@ A running-average background (the classic of Motion and of OpenCV's
   from the old background to the new frame, so an object in view stays an
   object. The noise estimate learns only from frames that were no light
   switch, and from still pixels only when much of the frame moves.
-* **A camera that is knocked or turned** — where much of the view turns
-  "moving" at once and is no light switch, the shift of the view is sought
-  (template matching of the frame's middle against the background); if the
-  background moved by it explains the change, the whole model moves with the
-  view and the frame is compared again, so what moves in it is still found
-  and the scene is not reported as motion.
+* **A camera that is knocked** — where much of the view turns "moving" at
+  once and is no light switch, the shift of the scene in the picture is
+  sought (template matching of the frame's middle against the background);
+  if the background moved by it explains the change, the whole model moves
+  with the scene and the frame is compared again, so what moves in it is
+  still found and the scene is not reported as motion. A shaking camera is
+  followed frame by frame. A slow pan, a turn about the lens axis or a zoom
+  is not followed (stale-region absorption handles them).
 * **A second background mode** — each pixel keeps an alternate value beside
   its main one (a cheap two-mode mixture, after Stauffer and Grimson, 1999):
   leaf against sky, an edge that a shaking camera moves back and forth. The
@@ -108,12 +110,20 @@ LIGHT_WINDOW_LEAST = 0.05
 """The least (weighted) share of still pixels a window needs for its own fit."""
 
 CAMERA_MOVE_SHARE = 0.2
-"""The share of the frame that must turn "moving" at once (and twice the last frame's
-motion) for the camera to be suspected of having moved: a knock on a plain scene
+"""The share of the frame that must turn "moving" at once (and ``SUDDEN_GROWTH`` times
+last frame's) for the camera to be suspected of having moved: a knock on a plain scene
 changes little more than its edges."""
+
+SUDDEN_GROWTH = 2.0
+"""How many times last frame's raw motion a frame must have for the change to count as
+sudden (with ``CAMERA_MOVE_SHARE``)."""
 
 CAMERA_MOVE_REACH = 0.08
 """The largest shift of the view sought, as a share of the frame's width."""
+
+CAMERA_MATCH_WIDTH = 320
+"""Pixels: a frame N >= 2 times this wide is reduced N times to seek the shift (the
+matching's cost grows with the frame's area); the shift is checked at full size."""
 
 CAMERA_MOVE_LEAST = 0.5
 """Pixels: the least shift of the view taken for a camera that moved."""
@@ -215,11 +225,11 @@ class AdaptiveBackground(MotionMethod):
         if self._background is None or self._background.shape != gray.shape:
             return self._learn(gray)
         self._frame_index += 1
-        return self._step(gray, camera_may_have_moved=True)
+        return self._step(gray, followed=False)
 
-    def _step(self, gray: GrayImage, camera_may_have_moved: bool) -> MotionResult:
-        """This frame against the model; ``camera_may_have_moved`` is False once the
-        model has been moved with the view for it."""
+    def _step(self, gray: GrayImage, followed: bool) -> MotionResult:
+        """This frame against the model; ``followed``: the second time, once the model
+        has been moved with the view for it (``_follow_scene``)."""
         assert self._background is not None
         assert self._alternate is not None and self._weight is not None
         assert self._deviation is not None and self._buffers is not None
@@ -264,21 +274,23 @@ class AdaptiveBackground(MotionMethod):
             still = np.zeros_like(gray)
             return MotionResult(still, difference, threshold, global_change=True)
         # A sudden change over much of the view that is no light: the camera may have
-        # been knocked or turned (or something big stepped in front of it: motion).
-        sudden = moving > CAMERA_MOVE_SHARE * raw.size and moving > 2 * self._previous_moving
-        if camera_may_have_moved and sudden:
-            shift = self._camera_shift(gray, threshold)
+        # been knocked (or something big stepped in front of it: motion).
+        if not followed and self._sudden(moving):
+            shift = self._scene_shift(gray, threshold)
             if shift is not None:
-                self._follow_camera(gray, *shift)
-                return replace(self._step(gray, camera_may_have_moved=False), global_change=True)
+                self._follow_scene(gray, threshold, *shift)
+                return replace(self._step(gray, followed=True), global_change=True)
         # After the light-switch test: the change a light switch makes is not noise, and
         # a noise estimate that took it in would raise the threshold past it and hide
         # the switch (and everything else) until it had decayed. The estimate (a
         # median) stays put while up to a fair share of pixels moves; past that the
         # last mask is left out of it (only then: a mask holds flicker and a shaking
         # camera's edges, which are noise too).
+        # Nor is what a move leaves of the scene's edges (the frame, followed, has none
+        # of the camera's noise left where the scene is).
         crowded = self._previous_moving > CROWDED_SHARE * gray.size
-        self.noise.update(difference, gray, self._previous_mask if crowded else None)
+        if not followed:
+            self.noise.update(difference, gray, self._previous_mask if crowded else None)
         # Leaves and edges shift by a pixel or so, so a neighbour's variability is a
         # pixel's own a moment later: each pixel's threshold is the largest in its 3x3.
         per_pixel = cv2.dilate(buffers.limit, self._neighbour_kernel)
@@ -457,25 +469,37 @@ class AdaptiveBackground(MotionMethod):
         self._previous_mask = kept
         self._previous_moving = kept_pixels
 
-    def _camera_shift(self, gray: GrayImage, threshold: float) -> tuple[float, float] | None:
-        """How far (x, y pixels) the view moved, where the camera was knocked or turned:
-        the shift, up to ``CAMERA_MOVE_REACH``, by which the background best matches the
-        frame, if the background moved that far matches it at all but a small share
-        (``CAMERA_MOVE_LEFT``) of the pixels that differ from it as it is. None where
-        no shift does: something big stepped into view."""
+    def _sudden(self, moving: int) -> bool:
+        """Whether ``moving`` raw pixels are much of the view, and many times last
+        frame's: what a knock does, where an object coming closer grows frame by frame."""
+        assert self._previous_raw is not None
+        size = self._previous_raw.size
+        return moving > CAMERA_MOVE_SHARE * size and moving > SUDDEN_GROWTH * cv2.countNonZero(
+            self._previous_raw
+        )
+
+    def _scene_shift(self, gray: GrayImage, threshold: float) -> tuple[float, float] | None:
+        """How far (x, y pixels) the scene moved in the picture, where the camera was
+        knocked (the other way): the shift, up to ``CAMERA_MOVE_REACH``, by which the
+        background best matches the frame, provided that the background moved that far
+        matches it at all but a small share (``CAMERA_MOVE_LEFT``) of the pixels that
+        differ from it as it is. None where no shift does: something big stepped into
+        view. A wide frame is matched at a reduced size (``CAMERA_MATCH_WIDTH``)."""
         assert self._background is not None
         height, width = gray.shape
-        reach = max(2, round(CAMERA_MOVE_REACH * width))
-        if min(height, width) <= 4 * reach:
-            return None
         frame = gray.astype(np.float32)
+        reduce = max(1, width // CAMERA_MATCH_WIDTH)
+        size = (width // reduce, height // reduce)
+        background = cv2.resize(self._background, size, interpolation=cv2.INTER_AREA)
+        picture = cv2.resize(frame, size, interpolation=cv2.INTER_AREA)
+        reach = max(2, round(CAMERA_MOVE_REACH * size[0]))
+        if min(size) <= 4 * reach:
+            return None
         # Where the frame's middle fits in the background: a squared difference per shift.
-        misfit = cv2.matchTemplate(
-            self._background, frame[reach:-reach, reach:-reach], cv2.TM_SQDIFF
-        )
+        misfit = cv2.matchTemplate(background, picture[reach:-reach, reach:-reach], cv2.TM_SQDIFF)
         _, _, (left, top), _ = cv2.minMaxLoc(misfit)
-        dx = reach - (left + _vertex_offset(misfit[top, left - 1 : left + 2]))
-        dy = reach - (top + _vertex_offset(misfit[top - 1 : top + 2, left]))
+        dx = reduce * (reach - (left + _vertex_offset(misfit[top, left - 1 : left + 2])))
+        dy = reduce * (reach - (top + _vertex_offset(misfit[top - 1 : top + 2, left])))
         if math.hypot(dx, dy) < CAMERA_MOVE_LEAST:
             return None
         # Compared where both views see the scene, on a grid (as the gain is).
@@ -489,22 +513,29 @@ class AdaptiveBackground(MotionMethod):
         after = np.count_nonzero(np.abs(frame[inside] - moved[inside]) > threshold)
         return (dx, dy) if before and after <= CAMERA_MOVE_LEFT * before else None
 
-    def _follow_camera(self, gray: GrayImage, dx: float, dy: float) -> None:
-        """Move the whole model (dx, dy) pixels with the view, so that the scene is
-        where the camera now sees it and only what moves in it is motion. The strip
-        that came into view takes this frame as its background, with nothing learned
-        about it yet (no alternate, no variability, not settled, never still)."""
+    def _follow_scene(self, gray: GrayImage, threshold: float, dx: float, dy: float) -> None:
+        """Move the whole model (dx, dy) pixels with the scene, so that only what moves
+        in it is motion. The strip that came into view takes this frame as its
+        background, with nothing learned about it yet (no alternate, no variability,
+        not settled, never still). Where the moved background explains the frame, the
+        frame is taken as the background: it is the sharper picture of the scene
+        (resampling blurs, and a camera knocked again and again would blur the
+        background until its edges were motion)."""
         assert self._background is not None and self._alternate is not None
         assert self._weight is not None and self._deviation is not None
         assert self._previous_mask is not None and self._previous_raw is not None
         assert self._settled is not None and self._still_frames is not None
+        assert self._buffers is not None
         frame = gray.astype(np.float32)
 
         def moved(image: np.ndarray, smooth: bool = True) -> np.ndarray:
             return _shifted(image, dx, dy, np.zeros_like(image), smooth)
 
-        self._background = _shifted(self._background, dx, dy, frame.copy())
-        self._alternate = _shifted(self._alternate, dx, dy, frame)
+        background = _shifted(self._background, dx, dy, frame.copy())
+        explained = np.abs(frame - background) <= threshold
+        background[explained] = frame[explained]
+        self._background = background
+        self._alternate = _shifted(self._alternate, dx, dy, frame.copy())
         self._weight = moved(self._weight)
         self._deviation = moved(self._deviation)
         self._recent = deque(
@@ -512,8 +543,12 @@ class AdaptiveBackground(MotionMethod):
             maxlen=self.check_every,
         )
         self._previous_mask = moved(self._previous_mask, smooth=False)
-        self._previous_raw = moved(self._previous_raw, smooth=False)
         self._previous_moving = cv2.countNonZero(self._previous_mask)
+        # Into the other raw buffer: the two take turns holding last frame's.
+        buffers = self._buffers
+        other = buffers.spare_raw if self._previous_raw is buffers.raw else buffers.raw
+        other.fill(0)
+        self._previous_raw = _shifted(self._previous_raw, dx, dy, other, smooth=False)
         self._settled = moved(self._settled, smooth=False)
         self._still_frames = moved(self._still_frames, smooth=False)
 

@@ -59,7 +59,8 @@ class Track:
     """Whether it has ever been further than ``in_place_px`` from its origin."""
     extent: tuple[float, float] = (0.0, 0.0)
     """Width and height of the object as lately seen in one piece: the largest of its
-    boxes, each frame forgetting ``extent_forget`` of what it was beyond the newest."""
+    one-blob boxes, each one-blob sighting forgetting ``extent_forget`` of what it was
+    beyond the newest (sightings of joined pieces leave it as it is)."""
 
     @property
     def last_centroid(self) -> Point:
@@ -93,11 +94,12 @@ class TrackerConfig:
     smoothing_window_s: float = 0.6
     """Span of history the velocity fit looks at."""
     extent_forget: float = 0.02
-    """The share of a track's remembered size it forgets per sighting (a half-life of
+    """The share of a track's remembered size it forgets per one-blob sighting (a half-life of
     about 35 frames), so that it follows an object that goes away from the camera."""
-    piece_slack: float = 0.2
+    piece_slack: float = 0.1
     """A left-over blob joins a track's blob when together they fit the track's
-    remembered size grown by this share (and a pixel each way)."""
+    remembered size grown by this share and 2 px: pieces of one object, not another
+    object beside it (see ``_join_pieces``)."""
     max_objects: int = 64
     """Largest blobs kept per frame: past this a frame is noise, and assignment cost grows."""
 
@@ -121,14 +123,15 @@ class Tracker:
         )
         matches, unmatched = self._assign(detections, tracks, predictions)
         assigned, unmatched = self._join_pieces(
-            [(track, detections[i]) for i, track in matches], detections, unmatched
+            [(track, detections[i]) for i, track in matches], detections, unmatched, time_s
         )
 
         reported: list[Detection] = []
         matched = set()
-        for track, detection, whole in [(t, d, True) for t, d in merged] + assigned:
+        # A crossing's pieces are cut from predictions: they teach no size.
+        for track, detection, one_blob in [(t, d, False) for t, d in merged] + assigned:
             matched.add(track.key)
-            extended = self._extend(track, detection, time_s, whole)
+            extended = self._extend(track, detection, time_s, one_blob)
             if extended is not None:
                 reported.append(extended)
         for track in self.tracks.values():
@@ -291,43 +294,52 @@ class Tracker:
         pairs: list[tuple[Track, Detection]],
         detections: list[Detection],
         unmatched: list[int],
+        time_s: float,
     ) -> tuple[list[tuple[Track, Detection, bool]], list[int]]:
         """Blobs that no track took and that are pieces of a tracked object, joined to its
         blob: where part of an object matches the background (a grey coat on a grey
         wall) its blob breaks in two, and the piece would start a second track beside
         the first. A piece joins a confirmed track's blob when the two together fit the
-        object's remembered size (``Track.extent``, ``piece_slack``); two objects side
-        by side do not. Returns each track's detection with whether it is one blob
-        (whole), and the blobs left over."""
-        left = list(unmatched)
-        joined: list[tuple[Track, Detection, bool]] = []
-        for track, detection in pairs:
-            whole = True
-            if track.track_id and left:
-                grow = 1.0 + self.config.piece_slack
-                width, height = grow * track.extent[0] + 2.0, grow * track.extent[1] + 2.0
-                nearest_first = sorted(
-                    left, key=lambda i: math.dist(detections[i].centroid, detection.centroid)
-                )
-                for index in nearest_first:
-                    together = _together(detection, detections[index])
-                    if together.box.w <= width and together.box.h <= height:
-                        detection, whole = together, False
-                        left.remove(index)
-            joined.append((track, detection, whole))
-        return joined, left
+        object's remembered size (``Track.extent``) but for ``piece_slack``: an object
+        of its own beside or behind a tracked one, or stepping out of it, makes it
+        wider than that. Each piece goes to the nearest such track (its prediction),
+        biggest pieces first. Returns each
+        track's detection with whether it is one blob, and the blobs left over."""
+        joined = [(track, detection, True) for track, detection in pairs]
+        left = []
+        grow = 1.0 + self.config.piece_slack
+        for index in sorted(unmatched, key=lambda i: -detections[i].area):
+            piece = detections[index]
+            best, nearest = -1, math.inf
+            for slot, (track, detection, _) in enumerate(joined):
+                if not track.track_id:
+                    continue
+                together = _together(detection, piece)
+                width, height = track.extent
+                fits = together.box.w <= grow * width + 2.0
+                fits = fits and together.box.h <= grow * height + 2.0
+                distance = math.dist(track.predict(time_s), piece.centroid)
+                if fits and distance < nearest:
+                    best, nearest = slot, distance
+            if best < 0:
+                left.append(index)
+                continue
+            track, detection, _ = joined[best]
+            joined[best] = (track, _together(detection, piece), False)
+        return joined, sorted(left)
 
     def _extend(
-        self, track: Track, detection: Detection, time_s: float, whole: bool
+        self, track: Track, detection: Detection, time_s: float, one_blob: bool
     ) -> Detection | None:
-        """``whole``: the detection is one blob, from which the track learns its size."""
+        """``one_blob``: the detection is one blob, from which the track learns its size
+        and where it was whole."""
         position = sighting_position(detection)
         step = step_length(track.sightings.last_position, position)
         track.hits += 1
         track.missed = 0
         track.box = detection.box
-        if whole:
-            track.extent = self._extent(track.extent, detection.box)
+        if one_blob:
+            track.extent = self._remembered_size(track.extent, detection.box)
         track.sightings.add(time_s, position)
         track.trail.append(detection.centroid)
         track.moved = track.moved or math.dist(detection.centroid, track.origin) > (
@@ -354,7 +366,7 @@ class Tracker:
         self._confirm_if_due(track)
         return track
 
-    def _extent(self, extent: tuple[float, float], box: Box) -> tuple[float, float]:
+    def _remembered_size(self, extent: tuple[float, float], box: Box) -> tuple[float, float]:
         keep = 1.0 - self.config.extent_forget
         return (max(float(box.w), keep * extent[0]), max(float(box.h), keep * extent[1]))
 
@@ -371,9 +383,10 @@ def _together(first: Detection, second: Detection) -> Detection:
     x1 = max(first.box.x + first.box.w, second.box.x + second.box.w)
     y1 = max(first.box.y + first.box.h, second.box.y + second.box.h)
     area = first.area + second.area
+    weights = (first.area, second.area) if area > 0 else (1.0, 1.0)
     centroid = (
-        (first.centroid[0] * first.area + second.centroid[0] * second.area) / area,
-        (first.centroid[1] * first.area + second.centroid[1] * second.area) / area,
+        (first.centroid[0] * weights[0] + second.centroid[0] * weights[1]) / sum(weights),
+        (first.centroid[1] * weights[0] + second.centroid[1] * weights[1]) / sum(weights),
     )
     return Detection(Box(x0, y0, x1 - x0, y1 - y0), centroid, area, first.edges | second.edges)
 

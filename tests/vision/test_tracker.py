@@ -145,6 +145,33 @@ def test_an_object_that_comes_into_view_beside_a_tracked_one_has_its_own_track()
     assert [d.box.w for d in out[-1]] == [20, 20]
 
 
+def test_a_cyclist_following_a_lorry_into_view_is_not_taken_for_a_piece_of_it():
+    tracker = Tracker()
+    frames = [
+        [det(10 + 3 * i, 100, 160, 80)] + ([det(3 * i - 20, 130, 20, 40)] if i >= 5 else [])
+        for i in range(20)
+    ]
+    out = run(tracker, frames)
+    assert [(d.track_id, d.box.w) for d in out[-1]] == [(1, 160), (2, 20)]
+
+
+@pytest.mark.parametrize("lorry_first", [True, False])
+def test_a_piece_joins_its_own_object_whichever_blob_comes_first(lorry_first):
+    """A walker splits beside a lorry: its legs are its own, not the lorry's."""
+    tracker = Tracker()
+    frames = []
+    for i in range(24):
+        lorry = det(10 + 3 * i, 100, 160, 80)
+        x = 174 + 3 * i
+        walker = (
+            [det(x, 110, 20, 18), det(x, 142, 20, 18)] if 10 <= i < 16 else [det(x, 110, 20, 50)]
+        )
+        frames.append([lorry, *walker] if lorry_first else [*walker, lorry])
+    out = run(tracker, frames)
+    for frame in out[10:16]:
+        assert sorted((d.box.w, d.box.h) for d in frame) == [(20, 50), (160, 80)]
+
+
 def test_object_hidden_for_a_few_frames_keeps_its_id():
     tracker = Tracker()
     frames = [[det(10 + 5 * i, 30)] if not 10 <= i < 14 else [] for i in range(25)]

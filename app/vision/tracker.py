@@ -303,14 +303,18 @@ class Tracker:
         object's remembered size (``Track.extent``) but for ``piece_slack``: an object
         of its own beside or behind a tracked one, or stepping out of it, makes it
         wider than that. Each piece goes to the nearest such track (its prediction),
-        biggest pieces first. Returns each
-        track's detection with whether it is one blob, and the blobs left over."""
+        biggest pieces first. Returns each track's detection with whether it is one
+        blob, and the blobs left over."""
         joined = [(track, detection, True) for track, detection in pairs]
+        if not unmatched:  # Most frames.
+            return joined, unmatched
+        predicted = [track.predict(time_s) for track, _ in pairs]
         left = []
         grow = 1.0 + self.config.piece_slack
         for index in sorted(unmatched, key=lambda i: -detections[i].area):
             piece = detections[index]
-            best, nearest = -1, math.inf
+            best: tuple[int, Detection] | None = None
+            nearest = math.inf
             for slot, (track, detection, _) in enumerate(joined):
                 if not track.track_id:
                     continue
@@ -318,21 +322,21 @@ class Tracker:
                 width, height = track.extent
                 fits = together.box.w <= grow * width + 2.0
                 fits = fits and together.box.h <= grow * height + 2.0
-                distance = math.dist(track.predict(time_s), piece.centroid)
+                distance = math.dist(predicted[slot], piece.centroid)
                 if fits and distance < nearest:
-                    best, nearest = slot, distance
-            if best < 0:
+                    best, nearest = (slot, together), distance
+            if best is None:
                 left.append(index)
                 continue
-            track, detection, _ = joined[best]
-            joined[best] = (track, _together(detection, piece), False)
+            slot, together = best
+            joined[slot] = (joined[slot][0], together, False)
         return joined, sorted(left)
 
     def _extend(
         self, track: Track, detection: Detection, time_s: float, one_blob: bool
     ) -> Detection | None:
         """``one_blob``: the detection is one blob, from which the track learns its size
-        and where it was whole."""
+        (``Track.extent``)."""
         position = sighting_position(detection)
         step = step_length(track.sightings.last_position, position)
         track.hits += 1

@@ -275,7 +275,7 @@ class AdaptiveBackground(MotionMethod):
             return MotionResult(still, difference, threshold, global_change=True)
         # A sudden change over much of the view that is no light: the camera may have
         # been knocked (or something big stepped in front of it: motion).
-        if not followed and self._sudden(moving):
+        if not followed and moving > CAMERA_MOVE_SHARE * raw.size and self._sudden(moving):
             shift = self._scene_shift(gray, threshold)
             if shift is not None:
                 self._follow_scene(gray, threshold, *shift)
@@ -470,13 +470,10 @@ class AdaptiveBackground(MotionMethod):
         self._previous_moving = kept_pixels
 
     def _sudden(self, moving: int) -> bool:
-        """Whether ``moving`` raw pixels are much of the view, and many times last
-        frame's: what a knock does, where an object coming closer grows frame by frame."""
+        """Whether ``moving`` raw pixels are many times last frame's: what a knock does,
+        where an object coming closer grows frame by frame."""
         assert self._previous_raw is not None
-        size = self._previous_raw.size
-        return moving > CAMERA_MOVE_SHARE * size and moving > SUDDEN_GROWTH * cv2.countNonZero(
-            self._previous_raw
-        )
+        return moving > SUDDEN_GROWTH * cv2.countNonZero(self._previous_raw)
 
     def _scene_shift(self, gray: GrayImage, threshold: float) -> tuple[float, float] | None:
         """How far (x, y pixels) the scene moved in the picture, where the camera was

@@ -196,6 +196,8 @@ def score_scene(scene: Scene, frames: Sequence[Image], method: str) -> ObjectSco
         if single and result.index > SPEED_FROM_FRAME:
             for t, d in match_boxes(truth_boxes, found, DEFAULT_IOU):
                 speed = truth[t].speed_px_s
+                if not speed:  # Standing still: no relative error to take.
+                    continue
                 score.speed_errors.append(abs(result.detections[d].speed_px_s - speed) / speed)
     return score
 

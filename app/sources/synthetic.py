@@ -31,15 +31,25 @@ class MovingObject:
     textured: bool = True
     first_frame: int = 0
     last_frame: int | None = None
+    stop: tuple[float, float] | None = None
+    """From and to (seconds of the scene): a while it stands still, then goes on."""
 
     def box_at(self, time_s: float) -> tuple[float, float, float, float]:
-        x = self.start[0] + self.velocity[0] * time_s
-        y = self.start[1] + self.velocity[1] * time_s
+        moving_s = time_s
+        if self.stop is not None:
+            start, end = self.stop
+            moving_s -= max(0.0, min(time_s, end) - start)
+        x = self.start[0] + self.velocity[0] * moving_s
+        y = self.start[1] + self.velocity[1] * moving_s
         return (x, y, float(self.size[0]), float(self.size[1]))
 
     @property
     def speed_px_s(self) -> float:
         return math.hypot(*self.velocity)
+
+    def speed_at(self, time_s: float) -> float:
+        stopped = self.stop is not None and self.stop[0] <= time_s < self.stop[1]
+        return 0.0 if stopped else self.speed_px_s
 
 
 @dataclass(frozen=True)
@@ -142,7 +152,7 @@ class Scene:
                 continue
             if (x1 - x0) * (y1 - y0) < self.min_visible_fraction * bw * bh:
                 continue
-            out.append(TruthObject(i, Box(x0, y0, x1 - x0, y1 - y0), obj.speed_px_s))
+            out.append(TruthObject(i, Box(x0, y0, x1 - x0, y1 - y0), obj.speed_at(time_s)))
         return out
 
     def frames_iter(self) -> Iterator[Image]:
@@ -280,6 +290,17 @@ def standard_scenes() -> dict[str, Scene]:
             camera_move_frame=45,
             camera_move=(5.5, 2.5),
             objects=(MovingObject((-20, 100), (45.0, 0.0), (28, 44), 200, first_frame=5),),
+        ),
+        # Someone walks in, waits four seconds (60 frames), and walks on: an object
+        # that stops is still an object.
+        "waiting": Scene(
+            name="waiting",
+            frames=150,
+            objects=(
+                MovingObject(
+                    (-20, 100), (40.0, 0.0), (28, 44), 200, first_frame=5, stop=(3.0, 7.0)
+                ),
+            ),
         ),
         "swaying": Scene(
             name="swaying",

@@ -58,7 +58,12 @@ A running-average background (the classic of Motion and of OpenCV's
   matches the background. A region that stays "moving" without any change,
   from frame to frame or over ``check_every`` frames (a ghost or a stopped
   object, not one creeping a fraction of a pixel a frame), becomes
-  background after ``absorb_after`` frames.
+  background after ``relit_after`` frames where it is no object: the frame
+  there is the background in another light (it correlates with it: a lamp came
+  on, a shadow fell), or a ghost (across the region's border the frame steps
+  less than the background does). An object that stopped (a person waiting)
+  is kept whole, out of the ghost step's reach, for ``absorb_after`` frames
+  (5 s at 25 fps).
 
 Per-pixel steps are compiled loops (``adaptive_kernels``), each reading a
 pixel once; the neighbourhood steps (dilate, erode, regions) are OpenCV's.
@@ -135,6 +140,15 @@ of the pixels that differed still differ (the objects in view)."""
 CROWDED_SHARE = 0.4
 """The share of the frame moving past which the noise is measured on still pixels only."""
 
+RELIT_CORRELATION = 0.9
+"""A stale region whose frame correlates with its background at least this much is the
+scene in another light, absorbed after ``relit_after`` frames (camera noise alone keeps a
+faintly textured patch below it: such a patch waits ``absorb_after``)."""
+
+LEAST_PATTERN = 25
+"""Pixels: a stale region smaller than this (a 5x5 patch) shows no pattern to tell an
+object by, and is absorbed after ``relit_after`` frames (the specks a lamp leaves)."""
+
 NEAR_MOTION_DEVIATION_SHARE = 0.3
 """The share of ``deviation_rate`` at which still pixels next to motion teach it."""
 
@@ -154,6 +168,8 @@ class _Buffers:
         self.raw = np.zeros(shape, np.uint8)
         self.spare_raw = np.zeros(shape, np.uint8)
         self.nothing = np.zeros(shape, np.uint8)
+        # Objects that stopped, as last found (``age_still_regions``).
+        self.stopped = np.zeros(shape, np.uint8)
 
 
 class AdaptiveBackground(MotionMethod):
@@ -173,7 +189,8 @@ class AdaptiveBackground(MotionMethod):
         mode_weight: float = 0.06,
         deviation_rate: float = 0.1,
         weak_fraction: float = 0.5,
-        absorb_after: int = 30,
+        absorb_after: int = 125,
+        relit_after: int = 30,
         check_every: int = 6,
         learning_frames: int = 20,
         settle_frames: int = 10,
@@ -191,6 +208,7 @@ class AdaptiveBackground(MotionMethod):
         self.deviation_rate = deviation_rate
         self.weak_fraction = weak_fraction
         self.absorb_after = absorb_after
+        self.relit_after = relit_after
         self.check_every = check_every
         self.learning_frames = learning_frames
         if not 0 <= settle_frames <= 255:
@@ -389,6 +407,7 @@ class AdaptiveBackground(MotionMethod):
             mask,
             buffers.changing,
             cv2.dilate(buffers.stirring, self._guard_kernel),
+            buffers.stopped,
             buffers.rounded_background,
             self._settled,
             LEARNING_REACH if learning else 1,
@@ -568,6 +587,7 @@ class AdaptiveBackground(MotionMethod):
     def _absorb_still_regions(self, gray: GrayImage, mask: Mask, stirring: Mask) -> None:
         """Count, per motion region, frames without any change; absorb the stale ones."""
         assert self._still_frames is not None and self._background is not None
+        assert self._buffers is not None
         # 16-bit labels (half the memory to sweep) where they surely suffice: 8-connected
         # regions are at most a quarter of the pixels (lone pixels, one apart).
         wide = mask.size // 4 >= 2**16 - 1
@@ -581,8 +601,12 @@ class AdaptiveBackground(MotionMethod):
             gray,
             self.check_every,
             self.absorb_after,
+            self.relit_after,
+            RELIT_CORRELATION,
+            LEAST_PATTERN,
             self._still_frames,
             self._background,
+            self._buffers.stopped,
         )
 
     def reset(self) -> None:
@@ -674,7 +698,7 @@ def warm_up() -> None:
     """Compile the model's kernels (the first run on a machine) or load them from the
     cache now, rather than on a camera's first activated frame: a square that moves,
     then stops and is absorbed, takes every step once."""
-    method = AdaptiveBackground(check_every=2, absorb_after=2)
+    method = AdaptiveBackground(check_every=2, absorb_after=2, relit_after=2)
     for step in range(8):
         frame = np.full((24, 32), 60, np.uint8)
         left = min(step, 4) * 4

@@ -20,6 +20,8 @@ and when they are compiled and cached: ``app.vision.compiled``.
 
 from __future__ import annotations
 
+import math
+
 import numpy as np
 
 from app.vision.compiled import compiled
@@ -238,6 +240,7 @@ def absorb_ghosts(
     mask: Mask,
     changing: Mask,
     near_stirring: Mask,
+    stopped: Mask,
     rounded: GrayImage,
     settled: np.ndarray,
     reach: int,
@@ -252,7 +255,9 @@ def absorb_ghosts(
     Near pixels that are changing, now or slowly (``near_stirring``: an object on
     the move), only neighbours that have been still for ``settle_frames`` frames
     (``settled``) count: a pixel just absorbed holds the object's own grey, and
-    would pass its match on through the object's unchanging inside.
+    would pass its match on through the object's unchanging inside. An object that
+    has ``stopped`` (``age_still_regions``) is left whole: eaten from its rim, its
+    border would come to run through its own inside, where it looks like a ghost.
     """
     rows, cols = gray.shape
     for y in range(rows):
@@ -268,7 +273,7 @@ def absorb_ghosts(
             end -= 1
         top, bottom = max(0, y - reach), min(rows, y + reach + 1)
         for x in range(first, end):
-            if mask[y, x] == 0 or changing[y, x] != 0:
+            if mask[y, x] == 0 or changing[y, x] != 0 or stopped[y, x] != 0:
                 continue
             least_age = settle_frames if near_stirring[y, x] != 0 else 0
             left, right = max(0, x - reach), min(cols, x + reach + 1)
@@ -293,25 +298,70 @@ def age_still_regions(
     gray: GrayImage,
     step: int,
     absorb_after: int,
+    relit_after: int,
+    relit_correlation: float,
+    least_pattern: int,
     still_frames: np.ndarray,
     background: FloatImage,
+    stopped_out: Mask,
 ) -> None:
     """Count on, by ``step``, the frames of each motion region (``labels`` 1..regions-1)
     in which none of its pixels is ``stirring`` (changed this frame, or since the
     frame ``step`` frames before, the last count: an object creeping a fraction of a
-    pixel a frame is not stopped); any other pixel restarts at 0. A region stale for
-    ``absorb_after`` frames becomes background."""
+    pixel a frame is not stopped); any other pixel restarts at 0.
+
+    A stale region becomes background after ``relit_after`` frames when it is not an
+    object: the same scene in another light (its frame correlates with its background
+    by ``relit_correlation`` or more: a lamp, a shadow), a ghost (across its border the
+    frame steps less than the background does: the scene runs on where an object that
+    left still stands in the model), or too small to tell (under ``least_pattern``
+    pixels). An object that stopped waits ``absorb_after`` frames, and its pixels are
+    marked in ``stopped_out`` (every other pixel cleared).
+    """
     stale = np.ones(regions, np.bool_)
     stale[0] = False
+    # Per region: pixels; sums of frame, background, their squares and products; and
+    # the steps of frame and background across its border.
+    sums = np.zeros((regions, 8), np.float64)
     rows, cols = labels.shape
     for y in range(rows):
         for x in range(cols):
+            label = labels[y, x]
             if stirring[y, x] != 0:
-                stale[labels[y, x]] = False
+                stale[label] = False
+            if label == 0:
+                continue
+            seen = np.float64(gray[y, x])
+            model = np.float64(background[y, x])
+            totals = sums[label]
+            totals[0] += 1.0
+            totals[1] += seen
+            totals[2] += model
+            totals[3] += seen * seen
+            totals[4] += model * model
+            totals[5] += seen * model
+            for ny, nx in ((y - 1, x), (y + 1, x), (y, x - 1), (y, x + 1)):
+                if 0 <= ny < rows and 0 <= nx < cols and labels[ny, nx] != label:
+                    totals[6] += abs(np.float64(gray[ny, nx]) - seen)
+                    totals[7] += abs(np.float64(background[ny, nx]) - model)
+    is_object = np.zeros(regions, np.bool_)
+    for label in range(1, regions):
+        count, seen, model, seen_square, model_square, product, frame_step, model_step = sums[label]
+        if count < least_pattern or frame_step < model_step:
+            continue
+        seen_spread = count * seen_square - seen * seen
+        model_spread = count * model_square - model * model
+        if seen_spread > 0.0 and model_spread > 0.0:
+            together = (count * product - seen * model) / math.sqrt(seen_spread * model_spread)
+            if together >= relit_correlation:
+                continue
+        is_object[label] = True
     for y in range(rows):
         for x in range(cols):
-            count = still_frames[y, x] + step if stale[labels[y, x]] else 0
-            if count >= absorb_after:
+            label = labels[y, x]
+            count = still_frames[y, x] + step if stale[label] else 0
+            if count >= (absorb_after if is_object[label] else relit_after):
                 background[y, x] = np.float32(gray[y, x])
                 count = 0
             still_frames[y, x] = count
+            stopped_out[y, x] = 255 if stale[label] and is_object[label] else 0

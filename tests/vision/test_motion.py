@@ -294,35 +294,54 @@ def test_adaptive_absorbs_an_object_that_stops(noise):
     assert not any(r.mask.any() for r in results[-10:])
 
 
-def test_adaptive_keeps_an_object_that_stops_for_a_while():
-    # Someone walks in and waits three seconds at 25 fps: all that time an object, not
-    # background (at the old 30 frames it was gone after 1.2 s).
+def noisy(frame, rng, sigma=1.5):
+    return np.clip(frame + rng.normal(0.0, sigma, frame.shape), 0, 255).astype(np.uint8)
+
+
+def test_adaptive_keeps_an_object_that_stops_for_a_while_then_takes_it_in():
+    # Someone walks in and waits at 25 fps: for 3 s an object, not background (at the
+    # old 30 frames it was gone after 1.2 s); after 125 frames (5 s) it is taken in.
+    rng = np.random.default_rng(4)
     method = AdaptiveBackground()
     background = textured_background(4)
+    person = rng.integers(170, 230, (20, 20)).astype(np.uint8)
+
+    def with_person(x):
+        frame = background.copy()
+        frame[50:70, x : x + 20] = person
+        return noisy(frame, rng)
+
     for _ in range(10):
-        method.apply(background)
+        method.apply(noisy(background, rng))
     for x in range(20, 50, 3):
-        method.apply(with_square(background, x, 50))
-    waiting = with_square(background, 50, 50)
-    covered = [np.count_nonzero(method.apply(waiting).mask[50:70, 50:70]) for _ in range(75)]
+        method.apply(with_person(x))
+    covered = [
+        np.count_nonzero(method.apply(with_person(50)).mask[50:70, 50:70]) for _ in range(75)
+    ]
     assert min(covered) >= 0.9 * 20 * 20
+    later = [method.apply(with_person(50)) for _ in range(50 + 2 * method.check_every)]
+    assert not later[-1].mask[50:70, 50:70].any()
 
 
 def test_adaptive_takes_in_a_shadow_that_stays_sooner_than_a_parked_object():
     # A shadow falls over one part of the scene as a car parks in another: the shaded
     # part is the same scene in another light (it correlates with the background), and
     # is taken in after relit_after frames; the car keeps its own pattern, and stays.
+    rng = np.random.default_rng(5)
     method = AdaptiveBackground()
     background = smooth_texture(5)
-    for _ in range(10):
-        method.apply(background)
+    for _ in range(method.learning_frames + 5):
+        method.apply(noisy(background, rng))
     shaded = background.copy()
     shaded[10:50, 10:60] = background[10:50, 10:60] * 0.7
-    parked = with_square(shaded, 90, 40)
-    results = [method.apply(parked) for _ in range(method.relit_after + 2 * method.check_every)]
+    parked = shaded.copy()
+    parked[40:60, 90:110] = rng.integers(20, 60, (20, 20))
+    results = [
+        method.apply(noisy(parked, rng)) for _ in range(method.relit_after + 2 * method.check_every)
+    ]
     assert np.count_nonzero(results[0].mask[10:50, 10:60]) > 0.95 * 40 * 50
     assert not results[-1].mask[10:50, 10:60].any()
-    assert results[-1].mask[40:60, 90:110].all()
+    assert np.count_nonzero(results[-1].mask[40:60, 90:110]) > 0.8 * 20 * 20
 
 
 def test_adaptive_counts_more_motion_regions_than_16_bit_labels_hold():

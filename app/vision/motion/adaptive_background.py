@@ -62,8 +62,8 @@ A running-average background (the classic of Motion and of OpenCV's
   there is the background in another light (it correlates with it: a lamp came
   on, a shadow fell), or a ghost (across the region's border the frame steps
   less than the background does). An object that stopped (a person waiting)
-  is kept whole, out of the ghost step's reach, for ``absorb_after`` frames
-  (5 s at 25 fps).
+  stays for ``absorb_after`` frames (5 s at 25 fps), kept whole, out of the
+  ghost step's reach, where its outline is clearly an object's.
 
 Per-pixel steps are compiled loops (``adaptive_kernels``), each reading a
 pixel once; the neighbourhood steps (dilate, erode, regions) are OpenCV's.
@@ -148,6 +148,11 @@ faintly textured patch below it: such a patch waits ``absorb_after``)."""
 LEAST_PATTERN = 25
 """Pixels: a stale region smaller than this (a 5x5 patch) shows no pattern to tell an
 object by, and is absorbed after ``relit_after`` frames (the specks a lamp leaves)."""
+
+CLEAR_EDGE = 2.0
+"""A stopped object is kept whole (out of the ghost step's reach) where the frame steps
+across its border at least this many times as much as the background does: clearly an
+object's outline, not a ghost's that happens to run along the scene's own edges."""
 
 NEAR_MOTION_DEVIATION_SHARE = 0.3
 """The share of ``deviation_rate`` at which still pixels next to motion teach it."""
@@ -604,6 +609,7 @@ class AdaptiveBackground(MotionMethod):
             self.relit_after,
             RELIT_CORRELATION,
             LEAST_PATTERN,
+            CLEAR_EDGE,
             self._still_frames,
             self._background,
             self._buffers.stopped,

@@ -301,6 +301,7 @@ def age_still_regions(
     relit_after: int,
     relit_correlation: float,
     least_pattern: int,
+    clear_edge: float,
     still_frames: np.ndarray,
     background: FloatImage,
     stopped_out: Mask,
@@ -315,53 +316,76 @@ def age_still_regions(
     by ``relit_correlation`` or more: a lamp, a shadow), a ghost (across its border the
     frame steps less than the background does: the scene runs on where an object that
     left still stands in the model), or too small to tell (under ``least_pattern``
-    pixels). An object that stopped waits ``absorb_after`` frames, and its pixels are
-    marked in ``stopped_out`` (every other pixel cleared).
+    pixels). Any other waits ``absorb_after`` frames: an object that stopped. Where
+    its border is clearly an object's (the frame steps across it ``clear_edge`` times
+    as much as the background does), its pixels are marked in ``stopped_out``, to be
+    kept whole meanwhile (every other pixel is cleared).
     """
+    rows, cols = labels.shape
     stale = np.ones(regions, np.bool_)
     stale[0] = False
-    # Per region: pixels; sums of frame, background, their squares and products; and
-    # the steps of frame and background across its border.
-    sums = np.zeros((regions, 8), np.float64)
-    rows, cols = labels.shape
     for y in range(rows):
         for x in range(cols):
-            label = labels[y, x]
             if stirring[y, x] != 0:
-                stale[label] = False
-            if label == 0:
-                continue
-            seen = np.float64(gray[y, x])
-            model = np.float64(background[y, x])
-            totals = sums[label]
-            totals[0] += 1.0
-            totals[1] += seen
-            totals[2] += model
-            totals[3] += seen * seen
-            totals[4] += model * model
-            totals[5] += seen * model
-            for ny, nx in ((y - 1, x), (y + 1, x), (y, x - 1), (y, x + 1)):
-                if 0 <= ny < rows and 0 <= nx < cols and labels[ny, nx] != label:
-                    totals[6] += abs(np.float64(gray[ny, nx]) - seen)
-                    totals[7] += abs(np.float64(background[ny, nx]) - model)
-    is_object = np.zeros(regions, np.bool_)
+                stale[labels[y, x]] = False
+    # Most regions on most checks are objects on the move, and need nothing more. The
+    # stale ones large enough to judge get a row of sums: frame, background, their
+    # squares and products, and the steps of frame and background across the border.
+    pixels = np.zeros(regions, np.int64)
+    if stale.any():
+        for y in range(rows):
+            for x in range(cols):
+                if stale[labels[y, x]]:
+                    pixels[labels[y, x]] += 1
+    row = np.full(regions, -1, np.int64)
+    judged = 0
     for label in range(1, regions):
-        count, seen, model, seen_square, model_square, product, frame_step, model_step = sums[label]
-        if count < least_pattern or frame_step < model_step:
+        if pixels[label] >= least_pattern:
+            row[label] = judged
+            judged += 1
+    sums = np.zeros((judged, 7), np.float64)
+    if judged:
+        for y in range(rows):
+            for x in range(cols):
+                at = row[labels[y, x]]
+                if at < 0:
+                    continue
+                label = labels[y, x]
+                seen = np.float64(gray[y, x])
+                model = np.float64(background[y, x])
+                sums[at, 0] += seen
+                sums[at, 1] += model
+                sums[at, 2] += seen * seen
+                sums[at, 3] += model * model
+                sums[at, 4] += seen * model
+                for ny, nx in ((y - 1, x), (y + 1, x), (y, x - 1), (y, x + 1)):
+                    if 0 <= ny < rows and 0 <= nx < cols and labels[ny, nx] != label:
+                        sums[at, 5] += abs(np.float64(gray[ny, nx]) - seen)
+                        sums[at, 6] += abs(np.float64(background[ny, nx]) - model)
+    after = np.full(regions, relit_after, np.int64)
+    kept = np.zeros(regions, np.bool_)
+    for label in range(1, regions):
+        at = row[label]
+        if at < 0:
             continue
-        seen_spread = count * seen_square - seen * seen
-        model_spread = count * model_square - model * model
+        size = np.float64(pixels[label])
+        seen, model, seen_square, model_square, product, frame_step, model_step = sums[at]
+        if frame_step < model_step:
+            continue
+        seen_spread = size * seen_square - seen * seen
+        model_spread = size * model_square - model * model
         if seen_spread > 0.0 and model_spread > 0.0:
-            together = (count * product - seen * model) / math.sqrt(seen_spread * model_spread)
+            together = (size * product - seen * model) / math.sqrt(seen_spread * model_spread)
             if together >= relit_correlation:
                 continue
-        is_object[label] = True
+        after[label] = absorb_after
+        kept[label] = frame_step >= clear_edge * model_step
     for y in range(rows):
         for x in range(cols):
             label = labels[y, x]
             count = still_frames[y, x] + step if stale[label] else 0
-            if count >= (absorb_after if is_object[label] else relit_after):
+            if count >= after[label]:
                 background[y, x] = np.float32(gray[y, x])
                 count = 0
             still_frames[y, x] = count
-            stopped_out[y, x] = 255 if stale[label] and is_object[label] else 0
+            stopped_out[y, x] = 255 if kept[label] else 0

@@ -3,7 +3,7 @@
     python bench/bench_pipeline.py [--frames N] [--repeat R] [--threads T] [--data DIR]
                                    [--synthetic] [--paced-frames N]
 
-Prints three tables (see bench/README.md):
+Prints four tables (see bench/README.md):
 
 (a) the median time of each stage of Vigil's Pipeline, every method, at
     320x240 and 640x480 input;
@@ -367,12 +367,9 @@ PACED_WARMUP = 30
 the scene (20 frames) and a few more."""
 
 
-def paced_times(
-    build: Callable[[float], Processor], frames: Sequence[Image], fps: float, pause_s: float
-) -> tuple[list[float], Processor]:
+def run_paced(processor: Processor, frames: Sequence[Image], pause_s: float) -> list[float]:
     """Each frame's processing time (s), every frame after ``pause_s`` of sleep (0: back
-    to back), after ``PACED_WARMUP`` frames untimed; and the processor."""
-    processor = build(fps)
+    to back), after ``PACED_WARMUP`` frames untimed."""
     for frame in frames[:PACED_WARMUP]:
         processor.process(frame)
     times = []
@@ -382,30 +379,28 @@ def paced_times(
         start = time.perf_counter()
         processor.process(frame)
         times.append(time.perf_counter() - start)
-    return times, processor
+    return times
 
 
 def time_paced(frames: Sequence[Image], fps: float, repeats: int) -> list[list[Cell]]:
     """Rows of table (d): the default method's stages, its whole frame, and the MOG2
     pipeline's whole frame; ms back to back, ms paced, and their ratio."""
-    default = _vigil_builder(method_names()[0])
-    reference = next(c.build for c in contenders() if c.label == REFERENCE)
     stages: dict[float, StageSamples] = {0.0: defaultdict(list), PAUSE_S: defaultdict(list)}
     mog2_frames: dict[float, list[float]] = {0.0: [], PAUSE_S: []}
     for _ in range(repeats):
         for pause_s in (0.0, PAUSE_S):  # Alternating, so a busy spell slows both.
-            _, pipeline = paced_times(default, frames, fps, pause_s)
-            assert isinstance(pipeline, Pipeline)
+            pipeline = make_pipeline(method_names()[0], fps)
+            run_paced(pipeline, frames, pause_s)
             for stage, values in stage_samples(pipeline).items():
                 stages[pause_s][stage].extend(values[PACED_WARMUP:])
-            mog2_frames[pause_s] += paced_times(reference, frames, fps, pause_s)[0]
+            mog2_frames[pause_s] += run_paced(OpenCVPipeline(mog2, fps), frames, pause_s)
     rows: list[list[Cell]] = []
     named = [
         (f"vigil {stage}", stages[0.0][stage], stages[PAUSE_S][stage]) for stage in stages[0.0]
     ]
     for label, warm, paced in [*named, (REFERENCE, mog2_frames[0.0], mog2_frames[PAUSE_S])]:
         if not any(warm) and not any(paced):
-            continue  # A stage the default settings skip (enhance "none").
+            continue  # Nothing to do on these frames (morphology, blobs: no motion).
         warm_ms, paced_ms = 1000 * median(warm), 1000 * median(paced)
         rows.append(
             [

@@ -413,13 +413,20 @@ function setUpZones(card, id) {
 }
 
 async function patchCamera(id, changes) {
+  // Taken at once: a status message that comes before the answer redraws the card from
+  // the camera as known here, and would otherwise undo the change on the page (untick
+  // "auto" just ticked) until the answer came.
+  const before = state.cameras.get(id);
+  state.cameras.set(id, { ...before, ...changes });
   try {
     const updated = await api("PATCH", `/api/cameras/${id}`, changes);
     state.cameras.set(id, { ...state.cameras.get(id), ...updated });
-    updateCard(state.cards.get(id), state.cameras.get(id));
   } catch (error) {
+    const undone = Object.fromEntries(Object.keys(changes).map((key) => [key, before && before[key]]));
+    state.cameras.set(id, { ...state.cameras.get(id), ...undone });
     toast(`Cannot change ${escapeHtml(cameraName(id))}: ${escapeHtml(error.message)}`, "error");
   }
+  updateCard(state.cards.get(id), state.cameras.get(id));
 }
 
 function updateCard(card, camera) {

@@ -447,3 +447,36 @@ def test_a_camera_that_goes_away_asks_for_no_pictures_meanwhile(
         assert refused == []
     finally:
         camera.stop()
+
+
+def test_a_setting_ticked_on_the_page_holds_while_the_server_answers(
+    serve: Callable[..., Running], page: Any
+) -> None:
+    # A camera's status message that came before the PATCH's answer redrew the card from
+    # the settings as they were, and unticked "auto" just ticked (a flaky browser test
+    # showed it). The answer is held here while a status message arrives.
+    server = serve(demo_camera=True)
+    cam = httpx.get(f"{server.base}/api/cameras").json()[0]["id"]
+    httpx.patch(f"{server.base}/api/cameras/{cam}", json={"sensitivity": 40}).raise_for_status()
+    page.goto(server.base + "/")
+    auto = page.locator(f'.card[data-id="{cam}"] input.auto')
+    wait_for(lambda: auto.count() and not auto.is_checked(), 20, "the card at sensitivity 40")
+    held: list[Any] = []
+    page.route(
+        f"**/api/cameras/{cam}",
+        lambda route: held.append(route) if route.request.method == "PATCH" else route.continue_(),
+    )
+    auto.check()
+    # The page's waits are what let the route handler run.
+    wait_for(lambda: held or page.wait_for_timeout(50), 10, "the PATCH to be sent")
+    status = httpx.get(f"{server.base}/api/cameras/{cam}").json()
+    publish(server, {"type": "status", "camera_id": cam, "state": status["state"], "fps": 15.0})
+    page.wait_for_timeout(1500)  # The status message above, and the camera's own.
+    assert auto.is_checked()
+    held[0].continue_()
+    wait_for(
+        lambda: httpx.get(f"{server.base}/api/cameras/{cam}").json()["sensitivity"] is None,
+        10,
+        "automatic sensitivity on the server",
+    )
+    assert auto.is_checked()

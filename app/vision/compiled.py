@@ -7,7 +7,8 @@ one that runs the kernels carries about 130 MB more than before Numba).
 The cache sits beside the source, or in the user's cache folder where that
 is read-only, so only the first run on a machine compiles (a second or
 two); where neither is writable, each process compiles afresh, with a
-warning.
+warning. Functions that kernels call (``compiled_helper``) are compiled with
+the first kernel that names them, into its cached code.
 """
 
 from __future__ import annotations
@@ -15,12 +16,29 @@ from __future__ import annotations
 import functools
 import logging
 import threading
+import types
 from collections.abc import Callable
 from typing import Any, TypeVar, cast
 
 log = logging.getLogger("vigil.vision")
 
 Kernel = TypeVar("Kernel", bound=Callable[..., Any])
+
+
+HELPER = "__vigil_helper__"
+"""Marks a function that compiled kernels call (``compiled_helper``)."""
+
+_helpers_compiling = threading.Lock()
+
+
+def compiled_helper(helper: Kernel) -> Kernel:
+    """``helper``, a function that compiled kernels call, compiled as a function of its
+    own (not inlined: a loop vectorises best apart from its caller's code, and inlining
+    costs seconds of compiling). It is compiled with the first kernel of its module
+    that runs, in place of the module's name for it: it can then be called only from
+    kernels, not from Python."""
+    setattr(helper, HELPER, True)
+    return helper
 
 
 def compiled(kernel: Kernel) -> Kernel:
@@ -42,6 +60,16 @@ def compiled(kernel: Kernel) -> Kernel:
 def _compile(kernel: Callable[..., Any]) -> Callable[..., Any]:
     from numba import njit  # Here: only processes that run a kernel load it.
 
+    with _helpers_compiling:
+        # The helpers the kernel's module names, and the helpers that theirs name.
+        modules = [kernel.__globals__]
+        for names in modules:
+            for name, value in list(names.items()):
+                # A compiled one keeps the mark (Numba copies the function's attributes).
+                if isinstance(value, types.FunctionType) and getattr(value, HELPER, False):
+                    names[name] = njit(value)
+                    if all(value.__globals__ is not known for known in modules):
+                        modules.append(value.__globals__)
     try:
         return njit(cache=True, nogil=True)(kernel)
     except RuntimeError as exc:  # "cannot cache function ...: no locator available".

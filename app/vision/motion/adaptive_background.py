@@ -65,10 +65,11 @@ A running-average background (the classic of Motion and of OpenCV's
   stays for ``absorb_after`` frames (5 s at 25 fps), kept whole, out of the
   ghost step's reach, where its outline is clearly an object's.
 
-Per-pixel steps are compiled loops (``adaptive_kernels``), each reading a
-pixel once; the neighbourhood steps (dilate, erode, regions) are OpenCV's.
-Buffers that do not leave a frame are kept and reused (fresh large buffers
-cost page faults).
+The per-pixel work is compiled (``adaptive_kernels``): most frames take one
+call, neighbourhood steps included; this class decides what the rare frames
+that change almost everywhere teach, and keeps the model and its state in a few
+stacked planes, reused from frame to frame (fresh large buffers cost page
+faults). The regions of the stale-region check are OpenCV's.
 """
 
 from __future__ import annotations
@@ -82,6 +83,7 @@ import cv2
 import numpy as np
 
 from app.vision.motion import adaptive_kernels as kernels
+from app.vision.motion.adaptive_kernels import GUARD_REACH, LEARNING_REACH
 from app.vision.motion.base import MotionMethod, MotionResult
 from app.vision.types import FloatImage, GrayImage, Mask
 
@@ -94,17 +96,9 @@ GAIN_INLIERS = 3.0
 GAIN_GRID = 4
 """The gain is measured on every GAIN_GRID-th row and column."""
 
-LEARNING_REACH = 3
-"""Pixels each way: how deep "inside" a region is, and how far a ghost's rim reaches,
-while the scene is being learned."""
-
 LEARNING_SETTLE_FRAMES = 5
 """``settle_frames`` while the scene is being learned: ghosts of what was in the first
 frame are expected then, and are eaten sooner."""
-
-GUARD_REACH = 3
-"""Pixels each way from a changing one within which the ghost step takes only settled
-neighbours."""
 
 LIGHT_SPREAD = 16.0
 """Pixels: the standard deviation of the Gaussian window over which a light change is
@@ -158,25 +152,6 @@ NEAR_MOTION_DEVIATION_SHARE = 0.3
 """The share of ``deviation_rate`` at which still pixels next to motion teach it."""
 
 
-class _Buffers:
-    """8-bit working images, kept from frame to frame rather than allocated afresh."""
-
-    def __init__(self, shape: tuple[int, ...]) -> None:
-        # |frame - mode| for the main and the alternate mode.
-        self.main_difference = np.empty(shape, np.uint8)
-        self.alternate_difference = np.empty(shape, np.uint8)
-        self.limit = np.empty(shape, np.uint8)
-        self.changing = np.empty(shape, np.uint8)
-        self.stirring = np.empty(shape, np.uint8)
-        self.rounded_background = np.empty(shape, np.uint8)
-        # Raw motion alternates between these two: one holds the previous frame's.
-        self.raw = np.zeros(shape, np.uint8)
-        self.spare_raw = np.zeros(shape, np.uint8)
-        self.nothing = np.zeros(shape, np.uint8)
-        # Objects that stopped, as last found (``age_still_regions``).
-        self.stopped = np.zeros(shape, np.uint8)
-
-
 class AdaptiveBackground(MotionMethod):
     name = "adaptive"
     description = (
@@ -219,207 +194,172 @@ class AdaptiveBackground(MotionMethod):
         if not 0 <= settle_frames <= 255:
             raise ValueError(f"settle_frames counts to 255 at most, not {settle_frames}")
         self.settle_frames = settle_frames
-        self._grow_kernel = cv2.getStructuringElement(cv2.MORPH_ELLIPSE, (5, 5))
-        self._neighbour_kernel = np.ones((3, 3), np.uint8)
-        side = 2 * LEARNING_REACH + 1
-        self._learning_kernel = np.ones((side, side), np.uint8)
         guard = 2 * GUARD_REACH + 1
         self._guard_kernel = np.ones((guard, guard), np.uint8)
-        self._background: FloatImage | None = None
-        self._alternate: FloatImage | None = None
-        self._weight: FloatImage | None = None  # 0..255: how often the alternate recurs
-        self._deviation: FloatImage | None = None  # grey levels: mean |difference| when still
-        self._buffers: _Buffers | None = None
+        self._model: np.ndarray | None = None
+        """Background, alternate, weight (0..255: how often the alternate recurs) and
+        deviation (grey levels: mean |difference| when still), float32 planes
+        (``kernels.MODEL``)."""
+        self._state: np.ndarray | None = None
+        """Settled, stopped, stirring and the two raw planes (``kernels.STATE``)."""
+        self._raw_plane = kernels.RAW[0]
+        """The state's plane that holds the previous frame's raw motion."""
+        self._rings: np.ndarray | None = None
         self._recent: deque[GrayImage] = deque(maxlen=check_every)
         """The last ``check_every`` frames, oldest first."""
         self._previous_mask: Mask | None = None
-        self._previous_raw: Mask | None = None
         self._previous_moving = 0
         """Pixels of ``_previous_mask`` that are set."""
         self._still_frames: np.ndarray | None = None
-        self._settled: np.ndarray | None = None  # frames each pixel has been still, to 255
         self._frame_index = 0
+
+    # The model's planes, and the state's, for the steps that work on one at a time.
+
+    @property
+    def _background(self) -> FloatImage:
+        assert self._model is not None
+        return self._model[kernels.BACKGROUND]
+
+    @property
+    def _alternate(self) -> FloatImage:
+        assert self._model is not None
+        return self._model[kernels.ALTERNATE]
+
+    @property
+    def _settled(self) -> np.ndarray:
+        assert self._state is not None
+        return self._state[kernels.SETTLED]
+
+    @property
+    def _previous_raw(self) -> Mask:
+        assert self._state is not None
+        return self._state[self._raw_plane]
 
     def apply(self, gray: GrayImage) -> MotionResult:
         if gray.dtype != np.uint8 or gray.ndim != 2:
             # The compiled steps index by grey level and trust the type they are given.
             raise ValueError(f"needs an 8-bit grey frame, not {gray.dtype} of shape {gray.shape}")
         gray = np.ascontiguousarray(gray)
-        if self._background is None or self._background.shape != gray.shape:
+        if self._model is None or self._model.shape[1:] != gray.shape:
             return self._learn(gray)
         self._frame_index += 1
         return self._step(gray, followed=False)
 
     def _step(self, gray: GrayImage, followed: bool) -> MotionResult:
         """This frame against the model; ``followed``: the second time, once the model
-        has been moved with the view for it (``_follow_scene``)."""
-        assert self._background is not None
-        assert self._alternate is not None and self._weight is not None
-        assert self._deviation is not None and self._buffers is not None
-        assert self._recent and self._previous_raw is not None
-        assert self._previous_mask is not None and self._settled is not None
-        buffers = self._buffers
+        has been moved with the view for it (``_follow_scene``).
 
-        established_weight = 255.0 * self.mode_weight
-        difference = np.empty_like(gray)
-        kernels.compare_with_modes(
-            gray,
-            self._background,
-            self._alternate,
-            self._weight,
-            self._gain(gray),
-            established_weight,
-            buffers.main_difference,
-            buffers.alternate_difference,
-            difference,
-        )
-        if self.noise.sigma is None:  # The first frame compared: the noise it shows.
-            self.noise.update(difference, gray)
-        threshold = float(self.threshold)  # One compiled signature, whatever was set.
-
-        k = self.noise.k
-        noise_deviation = MEAN_ABS_NOISE * (self.noise.sigma or 0.0)
-        raw = buffers.raw if buffers.raw is not self._previous_raw else buffers.spare_raw
-        moving = kernels.threshold_and_limits(
-            difference,
-            self._deviation,
-            threshold,
-            noise_deviation,
-            k,
-            threshold - k * noise_deviation,
-            raw,
-            buffers.limit,
-        )
-        if moving > self.light_switch_fraction * raw.size and self._lights_changed(
-            gray, raw, threshold
-        ):
-            self._relearn_after_light_switch(gray, threshold)
-            still = np.zeros_like(gray)
-            return MotionResult(still, difference, threshold, global_change=True)
-        # A sudden change over much of the view that is no light: the camera may have
-        # been knocked (or something big stepped in front of it: motion).
-        if not followed and moving > CAMERA_MOVE_SHARE * raw.size and self._sudden(moving):
-            shift = self._scene_shift(gray, threshold)
-            if shift is not None:
-                self._follow_scene(gray, threshold, *shift)
-                return replace(self._step(gray, followed=True), global_change=True)
-        # After the light-switch test: the change a light switch makes is not noise, and
-        # a noise estimate that took it in would raise the threshold past it and hide
-        # the switch (and everything else) until it had decayed. The estimate (a
-        # median) stays put while up to a fair share of pixels moves; past that the
-        # last mask is left out of it (only then: a mask holds flicker and a shaking
-        # camera's edges, which are noise too).
-        # Nor is what a move leaves of the scene's edges (the frame, followed, has none
-        # of the camera's noise left where the scene is).
-        crowded = self._previous_moving > CROWDED_SHARE * gray.size
-        if not followed:
-            self.noise.update(difference, gray, self._previous_mask if crowded else None)
-        # Leaves and edges shift by a pixel or so, so a neighbour's variability is a
-        # pixel's own a moment later: each pixel's threshold is the largest in its 3x3.
-        per_pixel = cv2.dilate(buffers.limit, self._neighbour_kernel)
-        # Hysteresis: pixels above half their threshold count when a strong one (above
-        # it) is near, so low-contrast objects come out whole and weak noise stays out.
-        grown_strong = cv2.dilate(cv2.compare(difference, per_pixel, cv2.CMP_GT), self._grow_kernel)
+        Most frames take one compiled call (``kernels.step``): it compares, and
+        where few enough pixels differ for neither a light switch nor a knock to be
+        possible, learns. The others are compared only; what they teach is decided
+        here first.
+        """
+        assert self._model is not None and self._state is not None
+        assert self._rings is not None and self._recent
+        assert self._previous_mask is not None
+        threshold = float(self.threshold)
         learning = self._frame_index <= self.learning_frames
-        # While the scene is learned, a flip deep inside a solid off-background region
-        # is an object stepping in or a ghost uncovered, not a sway: it does not teach.
-        solid = cv2.erode(raw, self._learning_kernel) if learning else buffers.nothing
-        # Still pixels next to the last frame's motion may be an object's unseen parts:
-        # they teach the variability slowly (NEAR_MOTION_DEVIATION_SHARE).
-        near_motion = (
-            cv2.dilate(self._previous_mask, self._learning_kernel)
-            if self._previous_moving and not learning
-            else buffers.nothing
+        raw_plane = kernels.RAW[0] + kernels.RAW[1] - self._raw_plane
+        # Past this share of the frame moving, the noise is measured on still pixels
+        # only (the estimate, a median, stays put while up to a fair share moves; a
+        # mask holds flicker and a shaking camera's edges, which are noise too).
+        crowded = self._previous_moving > CROWDED_SHARE * gray.size
+        # Where the noise is not known yet, or this is the frame followed after a
+        # knock, the frame is compared only: the noise is seeded from it, or the knock
+        # frame teaches it nothing.
+        fast = not followed and self.noise.sigma is not None
+        rates = self._rates(threshold, learning)
+        settings = np.array(
+            [
+                False,  # Compare first.
+                learning,
+                self._previous_moving > 0,
+                # The ghost step: while the scene is learned, the still neighbours are
+                # sought past the deaf rim a start-up ghost has, and settle sooner.
+                LEARNING_REACH if learning else 1,
+                LEARNING_SETTLE_FRAMES if learning else self.settle_frames,
+                round(threshold * self.weak_fraction),
+                raw_plane,
+                GAIN_GRID,
+            ],
+            np.int64,
         )
-        mask = np.empty_like(gray)
-        moving = kernels.learn(
+        compare_only_above = (
+            min(self.light_switch_fraction, CAMERA_MOVE_SHARE) * gray.size if fast else -1.0
+        )
+        bounds = np.array([GAIN_INLIERS * threshold, compare_only_above])
+        outputs = np.empty((kernels.OUTPUTS, *gray.shape), np.uint8)
+        difference, mask = outputs[kernels.DIFFERENCE], outputs[kernels.MASK]
+        # Stirring: changed since the previous frame, or since ``check_every`` back.
+        lagged = gray if learning else self._recent[0]
+        arguments = (
             gray,
             self._recent[-1],
-            difference,
-            buffers.main_difference,
-            buffers.alternate_difference,
-            per_pixel,
-            grown_strong,
-            raw,
-            self._previous_raw,
+            lagged,
             self._previous_mask,
-            solid,
-            near_motion,
-            self._background,
-            self._alternate,
-            self._weight,
-            self._deviation,
-            threshold,
-            self.weak_fraction,
-            established_weight,
-            255.0 * self.mode_rate,
-            self.learning_rate,
-            self.mode_rate,
-            1.0 / self._frame_index if learning else self.deviation_rate,
-            NEAR_MOTION_DEVIATION_SHARE * self.deviation_rate,
-            not learning,
-            self._settled,
-            mask,
-            buffers.changing,
-            buffers.rounded_background,
+            self._model,
+            self._state,
+            self._rings,
+            outputs,
+            rates,
+            settings,
+            bounds,
         )
-        if moving:
-            # Only motion regions read it (a quiet frame's stale count has none).
-            lagged = gray if learning else self._recent[0]
-            kernels.mark_stirring(gray, lagged, buffers.changing, threshold, buffers.stirring)
-            self._erode_ghosts(gray, mask, buffers, threshold, learning)
+        changed, _, moving = kernels.step(*arguments)
+        if moving < 0:
+            if self.noise.sigma is None:  # The first frame compared: the noise it shows.
+                self.noise.update(difference, gray)
+                threshold = float(self.threshold)
+                changed = int(np.count_nonzero(difference > math.floor(threshold)))
+                rates[:] = self._rates(threshold, learning, rates[kernels.GAIN])
+                settings[kernels.MARGIN] = round(threshold * self.weak_fraction)
+            if changed > self.light_switch_fraction * gray.size and self._lights_changed(
+                gray, difference, threshold
+            ):
+                self._relearn_after_light_switch(gray, threshold)
+                return MotionResult(np.zeros_like(gray), difference, threshold, global_change=True)
+            # A sudden change over much of the view that is no light: the camera may
+            # have been knocked (or something big stepped in front of it: motion).
+            if not followed and changed > CAMERA_MOVE_SHARE * gray.size and self._sudden(changed):
+                shift = self._scene_shift(gray, threshold)
+                if shift is not None:
+                    self._follow_scene(gray, threshold, *shift)
+                    return replace(self._step(gray, followed=True), global_change=True)
+            settings[kernels.LEARN_ONLY] = True
+            _, _, moving = kernels.step(*arguments)
+        # After the light-switch test: the change a light switch makes is not noise, and
+        # a noise estimate that took it in would raise the threshold past it and hide
+        # the switch (and everything else) until it had decayed. Nor is what a move
+        # leaves of the scene's edges (the frame, followed, has none of the camera's
+        # noise left where the scene is). The estimate learns for the next frame.
+        if not followed:
+            self.noise.update(difference, gray, self._previous_mask if crowded else None)
         if self._frame_index % self.check_every == 0:
-            self._absorb_still_regions(gray, mask, buffers.stirring)
+            self._absorb_still_regions(gray, mask, self._state[kernels.STIRRING])
         self._recent.append(gray)
         self._previous_mask = mask
-        self._previous_raw = raw
+        self._raw_plane = raw_plane
         self._previous_moving = moving
         return MotionResult(mask, difference, threshold)
 
-    def _erode_ghosts(
-        self, gray: GrayImage, mask: Mask, buffers: _Buffers, threshold: float, learning: bool
-    ) -> None:
-        """Absorb moving pixels that look like the background right next to them.
-
-        Where something sat in the first frame and left, the uncovered
-        background matches its still neighbours: a ghost, which this eats
-        from its rim inwards (ViBe's spatial propagation). A real object
-        does not match the background around it, so it stays; and since a
-        ghost does not change from frame to frame, pixels that change are
-        left alone, or the soft rim of a faint moving object would be eaten
-        and leave a trail behind it.
-
-        While the scene is being learned the neighbours are sought up to
-        three pixels away instead of one. The background is then the first
-        frame, so ghosts are to be expected, and the variability learned
-        while their object left has made their rim deaf: still, yet keeping
-        the object's value in its background, that rim hides the true
-        background from a 3x3 search and the ghost would stay for seconds.
-        Afterwards the 3x3 search keeps the rims of real objects safe.
-
-        A ghost stands still, so it is eaten at one ring a frame. Near pixels
-        that change (now, or over the last ``check_every`` frames) an object is
-        on the move, and there only settled neighbours count: where a
-        camouflaged object matches the background at a point of its rim, that
-        point is absorbed with the object's grey, and would otherwise pass the
-        match on, ring by ring, through the object's unchanging inside until
-        the object broke into pieces. The uncovered ghost of an object that
-        leaves is near it only at first.
-        """
-        assert self._background is not None and self._settled is not None
-        kernels.absorb_ghosts(
-            gray,
-            mask,
-            buffers.changing,
-            cv2.dilate(buffers.stirring, self._guard_kernel),
-            buffers.stopped,
-            buffers.rounded_background,
-            self._settled,
-            LEARNING_REACH if learning else 1,
-            LEARNING_SETTLE_FRAMES if learning else self.settle_frames,
-            round(threshold * self.weak_fraction),
-            self._background,
-        )
+    def _rates(self, threshold: float, learning: bool, gain: float = 1.0) -> np.ndarray:
+        """A frame's float32 settings (``kernels.RATES``); ``kernels.step`` sets the gain.
+        The noise is the estimate as it was when the frame was thresholded: it learns
+        from the frame for the next."""
+        rates = np.empty(kernels.RATES, np.float32)
+        rates[kernels.GAIN] = gain
+        rates[kernels.THRESHOLD] = threshold
+        rates[kernels.LEVEL] = math.floor(threshold)
+        rates[kernels.NOISE_DEVIATION] = MEAN_ABS_NOISE * (self.noise.sigma or 0.0)
+        rates[kernels.K] = self.noise.k
+        rates[kernels.WEAK_FRACTION] = self.weak_fraction
+        rates[kernels.ESTABLISHED_WEIGHT] = 255.0 * self.mode_weight
+        rates[kernels.SEED_WEIGHT] = 255.0 * self.mode_rate
+        rates[kernels.LEARNING_RATE] = self.learning_rate
+        rates[kernels.MODE_RATE] = self.mode_rate
+        rates[kernels.DEVIATION_RATE] = 1.0 / self._frame_index if learning else self.deviation_rate
+        rates[kernels.NEAR_MOTION_RATE] = NEAR_MOTION_DEVIATION_SHARE * self.deviation_rate
+        return rates
 
     def _learn(self, gray: GrayImage) -> MotionResult:
         """Take this frame as the background (first frame, or after a light switch).
@@ -427,32 +367,36 @@ class AdaptiveBackground(MotionMethod):
         The variability is kept: which pixels sway is a property of the
         scene, not of its lighting.
         """
-        self._background = gray.astype(np.float32)
-        self._alternate = self._background.copy()
-        self._weight = np.zeros_like(self._background)
-        if self._deviation is None or self._deviation.shape != gray.shape:
-            self._deviation = np.zeros_like(self._background)
-        self._buffers = _Buffers(gray.shape)
+        deviation = None if self._model is None else self._model[kernels.DEVIATION]
+        self._model = np.empty((kernels.MODEL, *gray.shape), np.float32)
+        self._model[kernels.BACKGROUND] = gray
+        self._model[kernels.ALTERNATE] = gray
+        self._model[kernels.WEIGHT] = 0.0
+        keep = deviation is not None and deviation.shape == gray.shape
+        self._model[kernels.DEVIATION] = deviation if keep else 0.0
+        self._state = np.zeros((kernels.STATE, *gray.shape), np.uint8)
+        self._state[kernels.SETTLED] = 255
+        self._raw_plane = kernels.RAW[1]
+        self._rings = kernels.ring_rows(gray.shape[1])
         self._still_frames = np.zeros(gray.shape, np.uint16)
-        self._settled = np.full(gray.shape, 255, np.uint8)
         self._recent = deque([gray], maxlen=self.check_every)
         self._previous_mask = np.zeros_like(gray)
-        self._previous_raw = self._buffers.spare_raw
         self._previous_moving = 0
         return MotionResult(self._previous_mask, self._previous_mask, self.threshold)
 
-    def _lights_changed(self, gray: GrayImage, raw: Mask, threshold: float) -> bool:
+    def _lights_changed(self, gray: GrayImage, difference: GrayImage, threshold: float) -> bool:
         """Whether a frame that differs from the background almost everywhere does so
         because the light changed (or the exposure jumped): it differs where nothing
         moved last frame too, by more than ``threshold`` and the same way at most of
         those pixels (the median change). An object that fills the view differs only
         where it is, grown from where it was; a camera that shook differs everywhere,
         but brighter on one side of each edge and darker on the other."""
-        assert self._background is not None and self._previous_mask is not None
+        assert self._previous_mask is not None
         grid = (slice(None, None, GAIN_GRID), slice(None, None, GAIN_GRID))
         was_still = self._previous_mask[grid] == 0
         if was_still.any():
-            changed = np.count_nonzero(raw[grid][was_still]) / np.count_nonzero(was_still)
+            raw = difference[grid][was_still] > math.floor(threshold)
+            changed = np.count_nonzero(raw) / np.count_nonzero(was_still)
             if changed <= self.light_switch_fraction:
                 return False
         shift = np.median(gray[grid].astype(np.float32) - self._background[grid])
@@ -470,9 +414,9 @@ class AdaptiveBackground(MotionMethod):
         the frame as a light switch does, the "motion" was the light coming on
         over a few frames, not objects: the frame is all taken.
         """
-        assert self._background is not None and self._previous_mask is not None
+        assert self._previous_mask is not None
         old_background, moving, anything_moved = (
-            self._background,
+            self._background,  # The old model's: learning makes a new one.
             self._previous_mask,
             self._previous_moving > 0,
         )
@@ -483,12 +427,11 @@ class AdaptiveBackground(MotionMethod):
         kept_pixels = cv2.countNonZero(kept)
         if kept_pixels > self.light_switch_fraction * kept.size:
             return
-        assert self._background is not None and self._settled is not None
         where = kept != 0
         # Not the last mask's still pixels: the object has stepped onto some of them.
         mapped = relit(old_background, gray, ~where, threshold**2)
         self._background[where] = mapped[where]
-        self._alternate = self._background.copy()
+        self._alternate[...] = self._background
         self._settled[where] = 0
         self._previous_mask = kept
         self._previous_moving = kept_pixels
@@ -496,7 +439,6 @@ class AdaptiveBackground(MotionMethod):
     def _sudden(self, moving: int) -> bool:
         """Whether ``moving`` raw pixels are many times last frame's: what a knock does,
         where an object coming closer grows frame by frame."""
-        assert self._previous_raw is not None
         return moving > SUDDEN_GROWTH * cv2.countNonZero(self._previous_raw)
 
     def _scene_shift(self, gray: GrayImage, threshold: float) -> tuple[float, float] | None:
@@ -506,7 +448,6 @@ class AdaptiveBackground(MotionMethod):
         matches it at all but a small share (``CAMERA_MOVE_LEFT``) of the pixels that
         differ from it as it is. None where no shift does: something big stepped into
         view. A wide frame is matched at a reduced size (``CAMERA_MATCH_WIDTH``)."""
-        assert self._background is not None
         height, width = gray.shape
         frame = gray.astype(np.float32)
         reduce = max(1, width // CAMERA_MATCH_WIDTH)
@@ -542,11 +483,8 @@ class AdaptiveBackground(MotionMethod):
         frame is taken as the background: it is the sharper picture of the scene
         (resampling blurs, and a camera knocked again and again would blur the
         background until its edges were motion)."""
-        assert self._background is not None and self._alternate is not None
-        assert self._weight is not None and self._deviation is not None
-        assert self._previous_mask is not None and self._previous_raw is not None
-        assert self._settled is not None and self._still_frames is not None
-        assert self._buffers is not None
+        assert self._model is not None and self._state is not None
+        assert self._previous_mask is not None and self._still_frames is not None
         frame = gray.astype(np.float32)
 
         def moved(image: np.ndarray, smooth: bool = True) -> np.ndarray:
@@ -555,44 +493,24 @@ class AdaptiveBackground(MotionMethod):
         background = _shifted(self._background, dx, dy, frame.copy())
         explained = np.abs(frame - background) <= threshold
         background[explained] = frame[explained]
-        self._background = background
-        self._alternate = _shifted(self._alternate, dx, dy, frame.copy())
-        self._weight = moved(self._weight)
-        self._deviation = moved(self._deviation)
+        model = self._model
+        model[kernels.BACKGROUND] = background
+        model[kernels.ALTERNATE] = _shifted(self._alternate, dx, dy, frame.copy())
+        for plane in (kernels.WEIGHT, kernels.DEVIATION):
+            model[plane] = moved(model[plane])
         self._recent = deque(
             (_shifted(seen, dx, dy, gray.copy()) for seen in self._recent),
             maxlen=self.check_every,
         )
         self._previous_mask = moved(self._previous_mask, smooth=False)
         self._previous_moving = cv2.countNonZero(self._previous_mask)
-        # Into the other raw buffer: the two take turns holding last frame's.
-        buffers = self._buffers
-        other = buffers.spare_raw if self._previous_raw is buffers.raw else buffers.raw
-        other.fill(0)
-        self._previous_raw = _shifted(self._previous_raw, dx, dy, other, smooth=False)
-        self._settled = moved(self._settled, smooth=False)
+        for plane in (kernels.SETTLED, self._raw_plane):
+            self._state[plane] = moved(self._state[plane], smooth=False)
         self._still_frames = moved(self._still_frames, smooth=False)
-
-    def _gain(self, gray: GrayImage) -> float:
-        """Brightness ratio of frame to background over pixels that look like background.
-
-        Pixels moving in the previous frame are left out, and so are pixels
-        far from the background now: an object just entering would
-        otherwise drag the ratio. One pixel in 16 is plenty for a ratio of
-        means, at a sixteenth of the cost.
-        """
-        assert self._background is not None and self._previous_mask is not None
-        frame_sum, background_sum, count = kernels.gain_sums(
-            gray, self._background, self._previous_mask, GAIN_GRID, GAIN_INLIERS * self.threshold
-        )
-        if not count or background_sum < count or frame_sum < count:  # A mean below 1.
-            return 1.0
-        return frame_sum / background_sum
 
     def _absorb_still_regions(self, gray: GrayImage, mask: Mask, stirring: Mask) -> None:
         """Count, per motion region, frames without any change; absorb the stale ones."""
-        assert self._still_frames is not None and self._background is not None
-        assert self._buffers is not None
+        assert self._still_frames is not None and self._state is not None
         # 16-bit labels (half the memory to sweep) where they surely suffice: 8-connected
         # regions are at most a quarter of the pixels (lone pixels, one apart).
         wide = mask.size // 4 >= 2**16 - 1
@@ -612,22 +530,18 @@ class AdaptiveBackground(MotionMethod):
             CLEAR_EDGE,
             self._still_frames,
             self._background,
-            self._buffers.stopped,
+            self._state[kernels.STOPPED],
         )
 
     def reset(self) -> None:
         super().reset()
-        self._background = None
-        self._alternate = None
-        self._weight = None
-        self._deviation = None
-        self._buffers = None
+        self._model = None
+        self._state = None
+        self._rings = None
         self._recent.clear()
         self._previous_mask = None
-        self._previous_raw = None
         self._previous_moving = 0
         self._still_frames = None
-        self._settled = None
         self._frame_index = 0
 
 

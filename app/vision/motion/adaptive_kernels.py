@@ -1,21 +1,37 @@
-"""The adaptive model's per-pixel arithmetic, compiled: each function is one pass over a frame.
+"""The adaptive model's per-pixel work, compiled: most frames take one call.
 
-Written as plain loops and compiled by Numba, so a frame's dozen per-pixel
-steps (compare with both modes, threshold, teach the variability and the
-modes, look for change) read each pixel once instead of once per OpenCV
-call. Some forty whole-image OpenCV calls and the Python between them cost
-a live camera most in fetching images and code that had gone cold while it
-waited for its next frame. The neighbourhood steps (dilate, erode,
-connected regions) stay with OpenCV, whose vector code is faster.
+Written as plain loops and compiled by Numba. A live camera's frame arrives
+after a wait in which its images and code have gone cold, and fetching them
+again, and every call's set-up, costs more than the arithmetic. So a frame's
+work is one call that reads each pixel twice, its state in a few stacked
+planes, and the neighbourhood steps (the largest or smallest value around a
+pixel) run row by row inside it on a few rows kept hot, instead of a dozen
+whole-image passes with Python between them:
+
+1. ``step``: the frame against both modes (``_compare``); how many pixels
+   differ. Where too many do for the frame to be taken in at once (a light
+   may have switched, the camera been knocked), it stops there and the caller
+   decides, then calls it again to learn only. Otherwise it goes on to:
+2. everything one frame teaches, streamed row by row. Each
+   pixel's own threshold (its variability, the largest in its 3x3), the mask
+   (hysteresis: pixels above half their threshold near one above it), the
+   model updates, which pixels stir, and the ghost step, each a few rows
+   behind the step it reads, so every row it reads is final. Rows with nothing
+   moving near them skip the neighbourhood steps.
+3. ``age_still_regions``, every few frames: stale motion regions.
 
 A grey level is compared with a threshold as OpenCV's ``threshold`` does
 (``difference > floor(threshold)``, which for whole grey levels is
 ``difference > threshold``), and models (never negative) are rounded to grey
 levels as its ``saturate_cast`` rounds (to nearest, halves to even, at most
-255); grey levels are signed 64-bit inside the loops, so a difference never
-wraps round. Frames must be 8-bit grey (the callers check). The kernels
-release the GIL: cameras that share a process run them side by side. How
-and when they are compiled and cached: ``app.vision.compiled``.
+255). A neighbourhood at the frame's edge is the part of it inside the frame,
+as OpenCV's ``dilate`` and ``erode`` take it. The per-pixel arithmetic is in
+float32 (whole grey levels are exact in it) and branch-free where it can be
+(selects rather than if), so the loops vectorise eight pixels at a time; each
+loop is compiled as a function of its own (``compiled_helper``), which
+vectorises it best. Frames must be 8-bit grey (the callers check). The
+kernels release the GIL: cameras that share a process run them side by side.
+How and when they are compiled and cached: ``app.vision.compiled``.
 """
 
 from __future__ import annotations
@@ -24,104 +40,407 @@ import math
 
 import numpy as np
 
-from app.vision.compiled import compiled
+from app.vision.compiled import compiled, compiled_helper
 from app.vision.types import FloatImage, GrayImage, Mask
 
-MAX_GREY = np.int64(255)
+MAX_GREY = np.float32(255.0)
+
+RING = 8
+"""Rows kept of each streamed step (a power of two, above the deepest look-back)."""
+
+# Planes of ``update``'s row rings (``ring_rows``).
+_LIMIT, _PER_PIXEL, _STRONG, _CHANGING, _ROUNDED = range(5)
+RING_PLANES = 5
+
+LEARNING_REACH = 3
+"""Pixels each way: how deep "inside" a region is, and how far a ghost's rim reaches,
+while the scene is being learned."""
+
+GUARD_REACH = 3
+"""Pixels each way from a changing one within which the ghost step takes only settled
+neighbours."""
+
+LIMIT_AHEAD = 3
+"""Rows by which a pixel's own threshold is computed ahead of the row learned: the
+mask's neighbourhood reaches 2 rows (the strong pixels' 5x5), theirs 1 (the 3x3)."""
+
+GHOST_BEHIND = max(GUARD_REACH, LEARNING_REACH)
+"""Rows by which the ghost step trails the row learned: it reads the stirring pixels
+within ``GUARD_REACH`` rows, and the mask within its reach (``LEARNING_REACH`` at
+most)."""
+
+
+# The model: float32 planes (``MODEL`` x height x width).
+BACKGROUND, ALTERNATE, WEIGHT, DEVIATION = range(4)
+MODEL = 4
+
+# Its 8-bit planes (``STATE`` x height x width): frames each pixel has been still (to
+# 255), objects that stopped (``age_still_regions``), pixels that stir, and the raw
+# motion, in two planes that take turns holding the previous frame's (``RAW``).
+SETTLED, STOPPED, STIRRING = range(3)
+RAW = (3, 4)
+STATE = 5
+
+# A frame's outputs (``OUTPUTS`` x height x width, 8-bit): the difference to the nearer
+# mode, and the mask.
+DIFFERENCE, MASK = range(2)
+OUTPUTS = 2
+
+# Float32 settings of a frame (``rates``), by index.
+(
+    GAIN,
+    THRESHOLD,
+    LEVEL,
+    NOISE_DEVIATION,
+    K,
+    WEAK_FRACTION,
+    ESTABLISHED_WEIGHT,
+    SEED_WEIGHT,
+    LEARNING_RATE,
+    MODE_RATE,
+    DEVIATION_RATE,
+    NEAR_MOTION_RATE,
+) = range(12)
+RATES = 12
+
+# Whole-number settings of a frame (``settings``), by index: learn only (``step``),
+# while the scene is being learned, anything moved last frame, the ghost step's reach,
+# settle frames and margin, this frame's raw plane, the gain's grid step.
+(
+    LEARN_ONLY,
+    LEARNING,
+    NEAR_MOTION_KNOWN,
+    REACH,
+    SETTLE_FRAMES,
+    MARGIN,
+    RAW_PLANE,
+    GAIN_STEP,
+) = range(8)
+SETTINGS = 8
+
+# Float64 bounds of ``step`` (``bounds``): the gain's inlier limit, and the moving
+# pixels past which the frame is only compared.
+GAIN_LIMIT, COMPARE_ONLY_ABOVE = range(2)
+BOUNDS = 2
+
+
+def ring_rows(width: int) -> np.ndarray:
+    """Scratch rows for ``step`` on frames ``width`` wide."""
+    return np.empty((RING_PLANES, RING, width), np.uint8)
 
 
 @compiled
-def gain_sums(
+def step(
     gray: GrayImage,
-    background: FloatImage,
+    previous_gray: GrayImage,
+    lagged: GrayImage,
     previous_mask: Mask,
-    step: int,
-    limit: float,
-) -> tuple[float, float, int]:
-    """Sums of frame and background grey, and their count, over every ``step``-th row
-    and column, where the pixel was still last frame and is within ``limit`` of the
-    background."""
+    model: np.ndarray,
+    state: np.ndarray,
+    rings: np.ndarray,
+    outputs: np.ndarray,
+    rates: np.ndarray,
+    settings: np.ndarray,
+    bounds: np.ndarray,
+) -> tuple[int, float, int]:
+    """A frame against the model, then, unless more than ``bounds[COMPARE_ONLY_ABOVE]``
+    pixels differ by more than the threshold (a light may have switched, the camera
+    moved: the caller decides), everything it teaches, in one call. With
+    ``settings[LEARN_ONLY]``, the frame was compared by an earlier call (its
+    difference is in ``outputs``, its gain in ``rates``): only what it teaches.
+
+    Returns the pixels that differ (-1 where it learned only), the gain (``_gain``,
+    set in ``rates`` too) and the pixels that move (-1 where it only compared). (One
+    kernel for both calls: a kernel is compiled with all it calls, so each costs
+    seconds on a machine's first run.)
+
+    ``rates`` (float32, ``RATES``): the gain, the threshold and its whole grey
+    levels, the noise's mean deviation, ``k`` and the weak fraction (of a pixel's own
+    threshold), the established and seed weights, the learning, mode,
+    deviation and near-motion deviation rates; ``settings`` (``SETTINGS``).
+    ``outputs[DIFFERENCE]`` gets the frame's difference to the nearer mode
+    (``_compare``), ``outputs[MASK]`` the mask.
+
+    What a frame teaches, row by row, each step a fixed number of rows behind the
+    one it reads:
+
+    * each pixel's own threshold, ``k`` x max(deviation, noise) + the offset that
+      makes the plain one the threshold, then the largest in its 3x3 (a leaf's
+      variability is its neighbour's a moment later), and the strong pixels,
+      above it (``LIMIT_AHEAD`` rows ahead);
+    * the mask: pixels above the weak fraction of their threshold within the 5x5
+      (ellipse) of a strong pixel; then what the frame teaches (``_learn_row``);
+    * which pixels stir: changed since the previous frame or since ``lagged``, a
+      few frames before (an object creeping a fraction of a pixel a frame);
+    * the ghost step (``_absorb_ghosts_row``, ``GHOST_BEHIND`` rows behind).
+
+    The raw motion (the difference above the plain threshold) goes to the state's
+    ``RAW_PLANE``; the other raw plane holds last frame's. While ``LEARNING``,
+    flips deep inside a solid raw region (its 7x7) do not teach the variability
+    and it is not clipped; otherwise, once ``NEAR_MOTION_KNOWN`` (anything moved
+    last frame), still pixels within the 7x7 of the last mask teach it at the
+    near-motion rate.
+    """
+    difference, mask_out = outputs[DIFFERENCE], outputs[MASK]
+    differing = -1
+    if not settings[LEARN_ONLY]:
+        rates[GAIN] = _gain(
+            gray, model[BACKGROUND], previous_mask, settings[GAIN_STEP], bounds[GAIN_LIMIT]
+        )
+        differing = _compare(
+            gray, model, rates[GAIN], rates[ESTABLISHED_WEIGHT], rates[LEVEL], difference
+        )
+        if differing > bounds[COMPARE_ONLY_ABOVE]:
+            return differing, rates[GAIN], -1
+    background, alternate = model[BACKGROUND], model[ALTERNATE]
+    weight, deviation = model[WEIGHT], model[DEVIATION]
+    settled, stopped, stirring_out = state[SETTLED], state[STOPPED], state[STIRRING]
+    raw_plane = settings[RAW_PLANE]
+    raw_out = state[raw_plane]
+    previous_raw = state[RAW[0] + RAW[1] - raw_plane]
+    learning = settings[LEARNING] != 0
+    near_motion_known = settings[NEAR_MOTION_KNOWN] != 0
+    reach = settings[REACH]
+    settle_frames = settings[SETTLE_FRAMES]
+    margin = settings[MARGIN]
+    rows, cols = gray.shape
+    level = rates[LEVEL]
+    k = rates[K]
+    noise_deviation = rates[NOISE_DEVIATION]
+    offset = rates[THRESHOLD] - k * noise_deviation
+    row = np.empty(cols, np.uint8)
+    grown = np.empty(cols, np.uint8)
+    near_motion = np.zeros(cols, np.uint8)
+    solid = np.zeros(cols, np.uint8)
+    near_stirring = np.empty(cols, np.uint8)
+    # Which rows hold anything: most rows of most frames hold nothing that moves, and
+    # their neighbourhoods need no look.
+    previous_rows = np.zeros(rows, np.bool_)
+    if near_motion_known:
+        for y in range(rows):
+            previous_rows[y] = holds_any(previous_mask[y])
+    strong_rows = np.zeros(rows, np.bool_)
+    moving_rows = np.zeros(rows, np.bool_)
+    stirring_rows = np.zeros(rows, np.bool_)
+    moving = 0
+    for step in range(rows + LIMIT_AHEAD + GHOST_BEHIND):
+        ahead = step
+        if ahead < rows:
+            _limit_row(deviation, ahead, noise_deviation, k, offset, rings[_LIMIT, ahead % RING])
+            _above_row(difference, ahead, level, raw_out)
+        pixel = step - 1  # Each pixel's threshold and the strong pixels: the 3x3 is known.
+        if 0 <= pixel < rows:
+            # Leaves and edges shift by a pixel or so, so a neighbour's variability is a
+            # pixel's own a moment later: its threshold is the largest in its 3x3.
+            column_extreme(rings[_LIMIT], pixel, 1, rows, True, row)
+            per_pixel = rings[_PER_PIXEL, pixel % RING]
+            spread_row(row, 1, True, per_pixel)
+            strong = rings[_STRONG, pixel % RING]
+            _above_each_row(difference[pixel], per_pixel, strong)
+            strong_rows[pixel] = holds_any(strong)
+        learned = step - LIMIT_AHEAD
+        if 0 <= learned < rows:
+            # Hysteresis: pixels above half their threshold count where a strong one
+            # (above it) is near, so low-contrast objects come out whole and weak
+            # noise stays out.
+            if any_near(strong_rows, learned, 2):
+                # The strong pixels' 5x5 ellipse: 5 wide over 3 rows, and the middle
+                # column over 5.
+                column_extreme(rings[_STRONG], learned, 1, rows, True, row)
+                spread_row(row, 2, True, grown)
+                column_extreme(rings[_STRONG], learned, 2, rows, True, row)
+                merge_row(row, True, grown)
+            else:
+                grown[:] = 0
+            if learning:
+                # While the scene is learned, a flip deep inside a solid region is an
+                # object stepping in or a ghost uncovered, not a sway: it does not teach.
+                column_extreme(raw_out, learned, LEARNING_REACH, rows, False, row)
+                spread_row(row, LEARNING_REACH, False, solid)
+            elif any_near(previous_rows, learned, LEARNING_REACH):
+                # Still pixels next to the last frame's motion may be an object's
+                # unseen parts: they teach the variability slowly.
+                column_extreme(previous_mask, learned, LEARNING_REACH, rows, True, row)
+                spread_row(row, LEARNING_REACH, True, near_motion)
+            else:
+                near_motion[:] = 0
+            at = learned % RING
+            _learn_row(
+                gray,
+                previous_gray,
+                difference,
+                rings[_PER_PIXEL, at],
+                grown,
+                raw_out,
+                previous_raw,
+                previous_mask,
+                solid,
+                near_motion,
+                background,
+                alternate,
+                weight,
+                deviation,
+                settled,
+                rates,
+                not learning,
+                mask_out,
+                rings[_CHANGING, at],
+                rings[_ROUNDED, at],
+                learned,
+            )
+            count = _count_above(mask_out, learned, np.float32(0.0))
+            moving += count
+            moving_rows[learned] = count > 0
+            _stirring_row(gray, lagged, rings[_CHANGING, at], level, stirring_out, learned)
+            stirring_rows[learned] = holds_any(stirring_out[learned])
+        ghost = learned - GHOST_BEHIND
+        if 0 <= ghost < rows and moving_rows[ghost]:
+            if any_near(stirring_rows, ghost, GUARD_REACH):
+                column_extreme(stirring_out, ghost, GUARD_REACH, rows, True, row)
+                spread_row(row, GUARD_REACH, True, near_stirring)
+            else:
+                near_stirring[:] = 0
+            _absorb_ghosts_row(
+                gray,
+                mask_out,
+                rings[_CHANGING, ghost % RING],
+                near_stirring,
+                stopped,
+                rings[_ROUNDED],
+                settled,
+                ghost,
+                reach,
+                settle_frames,
+                margin,
+                background,
+            )
+    return differing, rates[GAIN], moving
+
+
+@compiled_helper
+def _compare(
+    gray: GrayImage,
+    model: np.ndarray,
+    gain: np.float32,
+    established_weight: np.float32,
+    level: np.float32,
+    difference_out: GrayImage,
+) -> int:
+    """|frame - mode x gain| to the nearer mode (the alternate counts only once
+    established: its weight reaches ``established_weight``); returns how many pixels
+    differ by more than ``level``."""
+    moving = 0
+    for y in range(gray.shape[0]):
+        _nearer_difference_row(
+            gray,
+            model[BACKGROUND],
+            model[ALTERNATE],
+            model[WEIGHT],
+            gain,
+            established_weight,
+            difference_out,
+            y,
+        )
+        moving += _count_above(difference_out, y, level)
+    return moving
+
+
+@compiled_helper
+def _gain(
+    gray: GrayImage, background: FloatImage, previous_mask: Mask, step: int, limit: float
+) -> float:
+    """Brightness ratio of frame to background over pixels that look like background.
+
+    Pixels moving in the previous frame are left out, and so are pixels further
+    than ``limit`` from the background now: an object just entering would
+    otherwise drag the ratio. One pixel in ``step`` x ``step`` is plenty for a
+    ratio of means, at a fraction of the cost. 1 where no pixel is left, or a
+    mean is below 1.
+    """
     frame_sum = 0.0
     background_sum = 0.0
     count = 0
     rows, cols = gray.shape
     for y in range(0, rows, step):
-        for x in range(0, cols, step):
-            if previous_mask[y, x]:
-                continue
+        for x in range(0, cols, step):  # Selects, not branches: which way is a toss-up.
             value = float(gray[y, x])
             model = float(background[y, x])
-            if abs(value - model) < limit:
-                frame_sum += value
-                background_sum += model
-                count += 1
-    return frame_sum, background_sum, count
+            used = (previous_mask[y, x] == 0) & (abs(value - model) < limit)
+            frame_sum += value if used else 0.0
+            background_sum += model if used else 0.0
+            count += used
+    if count == 0 or background_sum < count or frame_sum < count:
+        return 1.0
+    return frame_sum / background_sum
 
 
-@compiled
-def compare_with_modes(
+@compiled_helper
+def _nearer_difference_row(
     gray: GrayImage,
     background: FloatImage,
     alternate: FloatImage,
     weight: FloatImage,
-    gain: float,
-    established_weight: float,
-    main_out: GrayImage,
-    alternate_out: GrayImage,
-    difference_out: GrayImage,
+    gain: np.float32,
+    established_weight: np.float32,
+    out: GrayImage,
+    y: int,
 ) -> None:
-    """|frame - mode x gain| for both modes, and the difference to the nearer one (the
-    alternate counts only once established: its weight reaches ``established_weight``)."""
-    rows, cols = gray.shape
-    for y in range(rows):
-        for x in range(cols):
-            value = np.int64(gray[y, x])  # Signed: uint8 minus uint8 would wrap.
-            main = abs(value - min(np.int64(np.rint(background[y, x] * gain)), MAX_GREY))
-            other = abs(value - min(np.int64(np.rint(alternate[y, x] * gain)), MAX_GREY))
-            main_out[y, x] = main
-            alternate_out[y, x] = other
-            nearer = main
-            if other < main and weight[y, x] >= established_weight:
-                nearer = other
-            difference_out[y, x] = nearer
+    for x in range(gray.shape[1]):
+        shade = np.float32(gray[y, x])
+        main = _mode_difference(shade, background[y, x], gain)
+        other = _mode_difference(shade, alternate[y, x], gain)
+        use_other = (other < main) & (weight[y, x] >= established_weight)
+        out[y, x] = np.uint8(other if use_other else main)
 
 
-@compiled
-def threshold_and_limits(
-    difference: GrayImage,
+@compiled_helper
+def _mode_difference(shade: np.float32, mode: np.float32, gain: np.float32) -> np.float32:
+    """|shade - mode x gain|, the mode rounded to a grey level."""
+    return abs(shade - min(np.rint(mode * gain), MAX_GREY))
+
+
+@compiled_helper
+def _count_above(image: GrayImage, y: int, level: np.float32) -> int:
+    """Pixels of row ``y`` above ``level``."""
+    count = 0
+    for x in range(image.shape[1]):
+        count += image[y, x] > level
+    return count
+
+
+@compiled_helper
+def _limit_row(
     deviation: FloatImage,
-    threshold: float,
-    noise_deviation: float,
-    k: float,
-    offset: float,
-    raw_out: Mask,
-    limit_out: GrayImage,
-) -> int:
-    """Raw motion (difference above the plain threshold), and each pixel's own threshold
-    before the neighbourhood maximum: ``k`` x max(deviation, noise) + ``offset``.
-    Returns how many pixels moved."""
-    level = np.int64(np.floor(threshold))  # cv2.threshold on 8 bits compares with the floor.
-    moving = 0
-    rows, cols = difference.shape
-    for y in range(rows):
-        for x in range(cols):
-            if difference[y, x] > level:
-                raw_out[y, x] = 255
-                moving += 1
-            else:
-                raw_out[y, x] = 0
-            spread = max(deviation[y, x], noise_deviation)
-            limit_out[y, x] = min(np.int64(np.floor(spread * k + offset)), MAX_GREY)
-    return moving
+    y: int,
+    noise_deviation: np.float32,
+    k: np.float32,
+    offset: np.float32,
+    out: GrayImage,
+) -> None:
+    """A pixel's own threshold before the neighbourhood's largest: ``k`` x
+    max(deviation, noise) + ``offset``, to a grey level (never below the plain one)."""
+    for x in range(deviation.shape[1]):
+        spread = max(deviation[y, x], noise_deviation)
+        out[x] = np.uint8(min(np.floor(spread * k + offset), MAX_GREY))
 
 
-@compiled
-def learn(
+@compiled_helper
+def _above_row(values: GrayImage, y: int, level: np.float32, out: Mask) -> None:
+    for x in range(values.shape[1]):
+        out[y, x] = np.uint8(255) if values[y, x] > level else np.uint8(0)
+
+
+@compiled_helper
+def _above_each_row(values: GrayImage, limits: GrayImage, out: Mask) -> None:
+    for x in range(values.size):
+        out[x] = np.uint8(255) if values[x] > limits[x] else np.uint8(0)
+
+
+@compiled_helper
+def _learn_row(
     gray: GrayImage,
     previous_gray: GrayImage,
     difference: GrayImage,
-    main: GrayImage,
-    alternate_difference: GrayImage,
     per_pixel: GrayImage,
     grown_strong: Mask,
     raw: Mask,
@@ -133,161 +452,236 @@ def learn(
     alternate: FloatImage,
     weight: FloatImage,
     deviation: FloatImage,
-    threshold: float,
-    weak_fraction: float,
-    established_weight: float,
-    seed_weight: float,
-    learning_rate: float,
-    mode_rate: float,
-    deviation_rate: float,
-    near_motion_deviation_rate: float,
+    settled: np.ndarray,
+    rates: np.ndarray,
     clip_deviation: bool,
-    settled_in_out: np.ndarray,
     mask_out: Mask,
     changing_out: Mask,
     rounded_out: GrayImage,
-) -> int:
-    """The mask (hysteresis), then every model update one frame makes. Returns the
-    number of moving pixels.
-
-    Per pixel: moving = difference above half its own threshold and within reach of
-    a strong pixel (``grown_strong``); still pixels and flips of ``raw`` not inside
-    a ``solid`` region teach the variability (clipped at the pixel's threshold
-    unless ``clip_deviation`` is off), still pixels ``near_motion`` that do not flip
-    at ``near_motion_deviation_rate``; a still pixel teaches its nearer mode; an
-    alternate that matches right after a background frame gains weight, and a value
-    far from both modes replaces a weak alternate. Counts, per pixel, the frames it
-    has been still (``settled_in_out``, at most 255), and writes, for the ghost step,
-    the pixels that changed since the previous frame (``changing_out``) and the
-    background rounded to grey levels (``rounded_out``).
-    """
-    # Branch-free (selects, & and | rather than if, and, or) so the loop vectorises.
-    level = np.int64(np.floor(threshold))
-    lr = np.float32(learning_rate)
-    mr = np.float32(mode_rate)
-    dr = np.float32(deviation_rate)
-    near_rate = np.float32(near_motion_deviation_rate)
-    seed = np.float32(seed_weight)
-    full = np.float32(255.0)
-    moving = 0
-    rows, cols = gray.shape
-    for y in range(rows):
-        for x in range(cols):
-            value = gray[y, x]
-            shade = np.float32(value)
-            nearer = difference[y, x]
-            limit = per_pixel[y, x]
-            weak = np.int64(np.floor(limit * weak_fraction))
-            is_moving = (grown_strong[y, x] != 0) & (nearer > weak)
-            still = ~is_moving
-            # Variability: from still pixels and from flips of the plain threshold.
-            flip = (raw[y, x] != previous_raw[y, x]) & (solid[y, x] == 0)
-            calm = still & (near_motion[y, x] == 0)
-            rate = dr if calm | flip else near_rate
-            sample = np.float32(min(nearer, limit) if clip_deviation else nearer)
-            spread = deviation[y, x]
-            deviation[y, x] = spread + rate * (sample - spread) if still | flip else spread
-            main_difference = main[y, x]
-            other_difference = alternate_difference[y, x]
-            old_weight = weight[y, x]
-            established = old_weight >= established_weight
-            nearer_alternate = established & (other_difference < main_difference)
-            model = background[y, x]
-            if_taught = model + lr * (shade - model)
-            model = if_taught if still & ~nearer_alternate else model
-            background[y, x] = model
-            other = alternate[y, x]
-            other = other + lr * (shade - other) if still & nearer_alternate else other
-            # Recurrence: a match counts only right after a background frame.
-            matched = (
-                (other_difference <= threshold)
-                & (other_difference < main_difference)
-                & (previous_mask[y, x] == 0)
-            )
-            target = full if matched else np.float32(0.0)
-            new_weight = old_weight + mr * (target - old_weight)
-            # A value far from both modes replaces a weak alternate.
-            unmatched = ~established & (min(main_difference, other_difference) > level)
-            alternate[y, x] = shade if unmatched else other
-            weight[y, x] = seed if unmatched else new_weight
-            change = abs(np.int64(value) - np.int64(previous_gray[y, x]))
-            changing_out[y, x] = 255 if change > level else 0
-            rounded = min(np.int64(np.rint(model)), MAX_GREY)
-            mask_out[y, x] = 255 if is_moving else 0
-            settled_in_out[y, x] = min(np.int64(settled_in_out[y, x]) + 1, MAX_GREY) if still else 0
-            rounded_out[y, x] = rounded
-            moving += 1 if is_moving else 0
-    return moving
-
-
-@compiled
-def mark_stirring(
-    gray: GrayImage, lagged: GrayImage, changing: Mask, threshold: float, stirring_out: Mask
+    y: int,
 ) -> None:
-    """Pixels that changed since the previous frame (``changing``) or since ``lagged``,
-    a few frames before: an object creeping a fraction of a pixel a frame stirs them."""
-    level = np.int64(np.floor(threshold))
-    rows, cols = gray.shape
-    for y in range(rows):
-        for x in range(cols):
-            drift = abs(np.int64(gray[y, x]) - np.int64(lagged[y, x]))
-            stirring_out[y, x] = 255 if (changing[y, x] != 0) | (drift > level) else 0
+    """Row ``y``'s mask (hysteresis), then every model update it makes.
+
+    Per pixel: moving = difference above the weak fraction of its own threshold
+    and within reach of a strong pixel (``grown_strong``); still pixels and flips
+    of ``raw`` not inside a ``solid`` region teach the variability (clipped at the
+    pixel's threshold unless ``clip_deviation`` is off), still pixels
+    ``near_motion`` that do not flip at the near-motion rate; a still pixel
+    teaches its nearer mode; an alternate that matches right after a background
+    frame gains weight, and a value far from both modes replaces a weak
+    alternate. Counts, per pixel, the frames it has been still (``settled``, at
+    most 255), and writes, for the ghost step, the pixels that changed since the
+    previous frame (``changing_out``) and the background rounded to grey levels
+    (``rounded_out``). ``per_pixel``, ``grown_strong``, ``solid``, ``near_motion``
+    and the two outs are rows; the rest whole images.
+    """
+    gain = rates[GAIN]
+    level = rates[LEVEL]
+    weak_fraction = rates[WEAK_FRACTION]
+    established_weight = rates[ESTABLISHED_WEIGHT]
+    seed = rates[SEED_WEIGHT]
+    lr = rates[LEARNING_RATE]
+    mr = rates[MODE_RATE]
+    dr = rates[DEVIATION_RATE]
+    near_rate = rates[NEAR_MOTION_RATE]
+    full = np.float32(255.0)
+    none = np.float32(0.0)
+    for x in range(gray.shape[1]):
+        shade = np.float32(gray[y, x])
+        nearer = np.float32(difference[y, x])
+        limit = np.float32(per_pixel[x])
+        is_moving = (grown_strong[x] != 0) & (nearer > limit * weak_fraction)
+        still = not is_moving
+        # Variability: from still pixels and from flips of the plain threshold.
+        flip = (raw[y, x] != previous_raw[y, x]) & (solid[x] == 0)
+        calm = still & (near_motion[x] == 0)
+        rate = dr if calm | flip else near_rate
+        sample = min(nearer, limit) if clip_deviation else nearer
+        spread = deviation[y, x]
+        deviation[y, x] = spread + rate * (sample - spread) if still | flip else spread
+        model = background[y, x]
+        other = alternate[y, x]
+        # The mode differences, as ``_compare`` found them.
+        main_difference = _mode_difference(shade, model, gain)
+        other_difference = _mode_difference(shade, other, gain)
+        old_weight = weight[y, x]
+        established = old_weight >= established_weight
+        nearer_alternate = established & (other_difference < main_difference)
+        if_taught = model + lr * (shade - model)
+        model = if_taught if still & (not nearer_alternate) else model
+        background[y, x] = model
+        other = other + lr * (shade - other) if still & nearer_alternate else other
+        # Recurrence: a match counts only right after a background frame.
+        matched = (
+            (other_difference <= level)
+            & (other_difference < main_difference)
+            & (previous_mask[y, x] == 0)
+        )
+        target = full if matched else none
+        new_weight = old_weight + mr * (target - old_weight)
+        # A value far from both modes replaces a weak alternate.
+        unmatched = (not established) & (min(main_difference, other_difference) > level)
+        alternate[y, x] = shade if unmatched else other
+        weight[y, x] = seed if unmatched else new_weight
+        change = abs(shade - np.float32(previous_gray[y, x]))
+        changing_out[x] = np.uint8(255) if change > level else np.uint8(0)
+        mask_out[y, x] = np.uint8(255) if is_moving else np.uint8(0)
+        count = settled[y, x]
+        settled[y, x] = np.uint8(count + (count < 255)) if still else np.uint8(0)
+        rounded_out[x] = np.uint8(min(np.rint(model), MAX_GREY))
 
 
-@compiled
-def absorb_ghosts(
+@compiled_helper
+def _stirring_row(
+    gray: GrayImage,
+    lagged: GrayImage,
+    changing: Mask,
+    level: np.float32,
+    out: Mask,
+    y: int,
+) -> None:
+    """Row ``y``'s pixels that changed since the previous frame (``changing``) or since
+    ``lagged``."""
+    for x in range(gray.shape[1]):
+        drift = abs(np.float32(gray[y, x]) - np.float32(lagged[y, x]))
+        out[y, x] = np.uint8(255) if (changing[x] != 0) | (drift > level) else np.uint8(0)
+
+
+@compiled_helper
+def _absorb_ghosts_row(
     gray: GrayImage,
     mask: Mask,
     changing: Mask,
     near_stirring: Mask,
     stopped: Mask,
-    rounded: GrayImage,
+    rounded: np.ndarray,
     settled: np.ndarray,
+    y: int,
     reach: int,
     settle_frames: int,
     margin: int,
     background: FloatImage,
 ) -> None:
-    """Moving pixels that do not change and sit within ``margin`` of the range of the
-    background of the still pixels within ``reach`` (``rounded``) become background at
-    once.
+    """Row ``y``'s moving pixels that do not change and sit within ``margin`` of the
+    range of the background of the still pixels within ``reach`` (``rounded``, a ring
+    of rows) become background at once.
+
+    Where something sat in the first frame and left, the uncovered background
+    matches its still neighbours: a ghost, which this eats from its rim inwards
+    (ViBe's spatial propagation), a ring a frame. A real object does not match
+    the background around it, so it stays; and since a ghost does not change from
+    frame to frame, pixels that change are left alone, or the soft rim of a faint
+    moving object would be eaten and leave a trail behind it. While the scene is
+    being learned, ``reach`` is 3 rather than 1: the background is then the first
+    frame, and the variability learned while a ghost's object left has made its
+    rim deaf, hiding the true background from a 3x3 search for seconds.
 
     Near pixels that are changing, now or slowly (``near_stirring``: an object on
     the move), only neighbours that have been still for ``settle_frames`` frames
-    (``settled``) count: a pixel just absorbed holds the object's own grey, and
-    would pass its match on through the object's unchanging inside. An object that
-    has ``stopped`` (``age_still_regions``) is left whole: eaten from its rim, its
-    border would come to run through its own inside, where it looks like a ghost.
+    (``settled``) count: where a camouflaged object matches the background at a
+    point of its rim, that point is absorbed with the object's grey, and would
+    otherwise pass the match on, ring by ring, through the object's unchanging
+    inside. An object that has ``stopped`` (``age_still_regions``) is left whole:
+    eaten from its rim, its border would come to run through its own inside,
+    where it looks like a ghost.
     """
-    rows, cols = gray.shape
-    for y in range(rows):
-        seen = np.uint8(0)
-        for x in range(cols):
-            seen |= mask[y, x]
-        if not seen:
-            continue  # Most rows, in most frames.
-        first, end = 0, cols  # From the row's first moving pixel to its last.
-        while mask[y, first] == 0:
-            first += 1
-        while mask[y, end - 1] == 0:
-            end -= 1
-        top, bottom = max(0, y - reach), min(rows, y + reach + 1)
-        for x in range(first, end):
-            if mask[y, x] == 0 or changing[y, x] != 0 or stopped[y, x] != 0:
-                continue
-            least_age = settle_frames if near_stirring[y, x] != 0 else 0
-            left, right = max(0, x - reach), min(cols, x + reach + 1)
-            lowest = np.int64(256)
-            highest = np.int64(-1)
-            for ny in range(top, bottom):
-                for nx in range(left, right):
-                    if mask[ny, nx] == 0 and settled[ny, nx] >= least_age:
-                        grey = np.int64(rounded[ny, nx])
-                        lowest = min(lowest, grey)
-                        highest = max(highest, grey)
-            value = np.int64(gray[y, x])
-            if lowest - margin <= value <= highest + margin:
-                background[y, x] = np.float32(value)
+    rows, cols = mask.shape
+    seen = np.uint8(0)
+    for x in range(cols):
+        seen |= mask[y, x]
+    if not seen:
+        return  # Most rows, in most frames.
+    first, end = 0, cols  # From the row's first moving pixel to its last.
+    while mask[y, first] == 0:
+        first += 1
+    while mask[y, end - 1] == 0:
+        end -= 1
+    top, bottom = max(0, y - reach), min(rows, y + reach + 1)
+    for x in range(first, end):
+        if mask[y, x] == 0 or changing[x] != 0 or stopped[y, x] != 0:
+            continue
+        least_age = settle_frames if near_stirring[x] != 0 else 0
+        left, right = max(0, x - reach), min(cols, x + reach + 1)
+        lowest = 256
+        highest = -1
+        for ny in range(top, bottom):
+            for nx in range(left, right):
+                if mask[ny, nx] == 0 and settled[ny, nx] >= least_age:
+                    grey = int(rounded[ny % RING, nx])
+                    lowest = min(lowest, grey)
+                    highest = max(highest, grey)
+        value = int(gray[y, x])
+        if lowest - margin <= value <= highest + margin:
+            background[y, x] = np.float32(value)
+
+
+# Row-by-row neighbourhood steps: the largest or smallest value around each pixel,
+# one row at a time, on rows kept hot.
+
+
+@compiled_helper
+def holds_any(values: GrayImage) -> bool:
+    """Whether any of a row's values is set."""
+    largest = np.uint8(0)
+    for x in range(values.size):
+        largest = max(largest, values[x])
+    return largest != 0
+
+
+@compiled_helper
+def any_near(flags: np.ndarray, row: int, reach: int) -> bool:
+    """Whether any of ``flags`` within ``reach`` of ``row`` is set."""
+    for other in range(max(row - reach, 0), min(row + reach + 1, flags.size)):
+        if flags[other]:
+            return True
+    return False
+
+
+@compiled_helper
+def column_extreme(
+    image: np.ndarray, row: int, reach: int, rows: int, largest: bool, out: GrayImage
+) -> None:
+    """Per column, the largest (or smallest) of the rows within ``reach`` of ``row``
+    inside the frame (``rows`` high). ``image`` holds them all, or is a ring of the
+    last few (row y in row y % its height)."""
+    held = image.shape[0]
+    source = row % held
+    for x in range(out.size):
+        out[x] = image[source, x]
+    for other in range(max(row - reach, 0), min(row + reach + 1, rows)):
+        merge_row(image[other % held], largest, out)
+
+
+@compiled_helper
+def merge_row(values: GrayImage, largest: bool, out: GrayImage) -> None:
+    """``out``, each value the larger (or smaller) of itself and ``values``'."""
+    if largest:
+        for x in range(out.size):
+            out[x] = max(out[x], values[x])
+    else:
+        for x in range(out.size):
+            out[x] = min(out[x], values[x])
+
+
+@compiled_helper
+def spread_row(values: GrayImage, reach: int, largest: bool, out: GrayImage) -> None:
+    """Per column, the largest (or smallest) of ``values`` within ``reach`` columns
+    (inside the row), into ``out``."""
+    cols = values.size
+    for x in range(cols):
+        out[x] = values[x]
+    for shift in range(1, min(reach, cols - 1) + 1):
+        width = cols - shift
+        if largest:
+            for x in range(width):
+                out[x] = max(out[x], values[x + shift])  # The value ``shift`` right ...
+            for x in range(width):
+                out[x + shift] = max(out[x + shift], values[x])  # ... and left.
+        else:
+            for x in range(width):
+                out[x] = min(out[x], values[x + shift])
+            for x in range(width):
+                out[x + shift] = min(out[x + shift], values[x])
 
 
 @compiled

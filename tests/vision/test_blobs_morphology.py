@@ -1,5 +1,8 @@
+import cv2
 import numpy as np
 import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
 
 from app.vision.blobs import BlobExtractor
 from app.vision.detections import BOTTOM, LEFT, RIGHT, TOP
@@ -51,3 +54,40 @@ def test_blobs_name_the_frame_edges_they_touch():
     mask[25:35, 30:40] = 255  # inside
     found = BlobExtractor(min_area=1)(mask, scale=2.0)  # top to bottom, left to right
     assert [d.edges for d in found] == [LEFT | TOP, 0, RIGHT, BOTTOM]
+
+
+@settings(max_examples=150, deadline=None)
+@given(
+    st.lists(
+        st.tuples(st.integers(-6, 45), st.integers(-6, 61), st.integers(1, 14), st.integers(1, 14)),
+        min_size=0,
+        max_size=6,
+    ),
+    st.sampled_from([(3, 5), (1, 5), (3, 1), (5, 7), (7, 3)]),
+)
+def test_morphology_of_the_motion_box_is_the_whole_frames(boxes, kernels):
+    # Only the box around the motion is cleaned: the result must be OpenCV's on the
+    # whole frame, blobs at the frame's edges and several far apart included.
+    mask = np.zeros((40, 56), np.uint8)
+    for x, y, w, h in boxes:
+        mask[max(y, 0) : max(y + h, 0), max(x, 0) : max(x + w, 0)] = 255
+    mask[::7, ::5] = 255 - mask[::7, ::5]  # Specks and holes.
+    opening, closing = kernels
+    expected = mask
+    for size, operation in ((opening, cv2.MORPH_OPEN), (closing, cv2.MORPH_CLOSE)):
+        if size > 1:
+            ellipse = cv2.getStructuringElement(cv2.MORPH_ELLIPSE, (size, size))
+            expected = cv2.morphologyEx(expected, operation, ellipse)
+    assert np.array_equal(Morphology(opening, closing)(mask), expected)
+
+
+def test_blobs_are_found_in_the_motion_box_as_in_the_whole_frame():
+    mask = np.zeros((60, 80), np.uint8)
+    mask[0:5, 70:80] = 255  # A corner.
+    mask[30:50, 10:30] = 255
+    mask[35:45, 15:25] = 0  # A hole: the inner contour is not a blob.
+    mask[38:42, 18:22] = 255  # A blob inside it, which an outer contour does not see.
+    found = BlobExtractor(min_area=1)(mask)
+    contours, _ = cv2.findContours(mask, cv2.RETR_EXTERNAL, cv2.CHAIN_APPROX_SIMPLE)
+    expected = sorted(cv2.boundingRect(c) for c in contours)
+    assert sorted(tuple(d.box.as_list()) for d in found) == expected

@@ -34,9 +34,10 @@ _helpers_compiling = threading.Lock()
 def compiled_helper(helper: Kernel) -> Kernel:
     """``helper``, a function that compiled kernels call, compiled as a function of its
     own (not inlined: a loop vectorises best apart from its caller's code, and inlining
-    costs seconds of compiling). It is compiled with the first kernel of its module
-    that runs, in place of the module's name for it: it can then be called only from
-    kernels, not from Python."""
+    costs seconds of compiling). It is compiled with the first kernel that names it in
+    its module (a name imported into that module, or a helper's module, counts; a
+    ``module.helper`` attribute does not), in place of the module's name for it. Called
+    from Python, it runs as plain Python before that, compiled after."""
     setattr(helper, HELPER, True)
     return helper
 

@@ -269,25 +269,22 @@ class AdaptiveBackground(MotionMethod):
         # frame teaches it nothing.
         fast = not followed and self.noise.sigma is not None
         rates = self._rates(threshold, learning)
-        settings = np.array(
-            [
-                False,  # Compare first.
-                learning,
-                self._previous_moving > 0,
-                # The ghost step: while the scene is learned, the still neighbours are
-                # sought past the deaf rim a start-up ghost has, and settle sooner.
-                LEARNING_REACH if learning else 1,
-                LEARNING_SETTLE_FRAMES if learning else self.settle_frames,
-                round(threshold * self.weak_fraction),
-                raw_plane,
-                GAIN_GRID,
-            ],
-            np.int64,
-        )
-        compare_only_above = (
+        settings = np.empty(kernels.SETTINGS, np.int64)
+        settings[kernels.LEARN_ONLY] = False  # Compare first.
+        settings[kernels.LEARNING] = learning
+        settings[kernels.NEAR_MOTION_KNOWN] = self._previous_moving > 0
+        # The ghost step: while the scene is learned, the still neighbours are sought
+        # past the deaf rim a start-up ghost has, and settle sooner.
+        settings[kernels.REACH] = LEARNING_REACH if learning else 1
+        settings[kernels.SETTLE_FRAMES] = LEARNING_SETTLE_FRAMES if learning else self.settle_frames
+        settings[kernels.MARGIN] = round(threshold * self.weak_fraction)
+        settings[kernels.RAW_PLANE] = raw_plane
+        settings[kernels.GAIN_STEP] = GAIN_GRID
+        bounds = np.empty(kernels.BOUNDS)
+        bounds[kernels.GAIN_LIMIT] = GAIN_INLIERS * threshold
+        bounds[kernels.COMPARE_ONLY_ABOVE] = (
             min(self.light_switch_fraction, CAMERA_MOVE_SHARE) * gray.size if fast else -1.0
         )
-        bounds = np.array([GAIN_INLIERS * threshold, compare_only_above])
         outputs = np.empty((kernels.OUTPUTS, *gray.shape), np.uint8)
         difference, mask = outputs[kernels.DIFFERENCE], outputs[kernels.MASK]
         # Stirring: changed since the previous frame, or since ``check_every`` back.

@@ -48,7 +48,7 @@ MAX_GREY = np.float32(255.0)
 RING = 8
 """Rows kept of each streamed step (a power of two, above the deepest look-back)."""
 
-# Planes of ``update``'s row rings (``ring_rows``).
+# Planes of ``step``'s row rings (``ring_rows``).
 _LIMIT, _PER_PIXEL, _STRONG, _CHANGING, _ROUNDED = range(5)
 RING_PLANES = 5
 
@@ -61,13 +61,23 @@ GUARD_REACH = 3
 neighbours."""
 
 LIMIT_AHEAD = 3
-"""Rows by which a pixel's own threshold is computed ahead of the row learned: the
-mask's neighbourhood reaches 2 rows (the strong pixels' 5x5), theirs 1 (the 3x3)."""
+"""Rows by which a pixel's own threshold and the raw motion are computed ahead of the
+row learned: the mask's neighbourhood reaches 2 rows (the strong pixels' 5x5), theirs 1
+(the 3x3), and the solid region's ``LEARNING_REACH``."""
 
 GHOST_BEHIND = max(GUARD_REACH, LEARNING_REACH)
 """Rows by which the ghost step trails the row learned: it reads the stirring pixels
 within ``GUARD_REACH`` rows, and the mask within its reach (``LEARNING_REACH`` at
 most)."""
+
+# What the streamed steps read must be written by then and still in the rings: the solid
+# region reads the raw motion LEARNING_REACH rows ahead, the hysteresis the strong
+# pixels 2 rows ahead (written LIMIT_AHEAD - 1 ahead), the ghost step the rounded
+# background its reach past GHOST_BEHIND rows back.
+assert LIMIT_AHEAD - 1 >= 2, "the hysteresis would read strong pixels not yet found"
+assert LEARNING_REACH <= LIMIT_AHEAD, "the solid region would read raw rows not yet made"
+assert LIMIT_AHEAD + 2 <= RING, "the hysteresis would read strong rows the ring lost"
+assert GHOST_BEHIND + LEARNING_REACH < RING, "the ghost step would read rows the ring lost"
 
 
 # The model: float32 planes (``MODEL`` x height x width).

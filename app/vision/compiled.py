@@ -8,7 +8,7 @@ The cache sits beside the source, or in the user's cache folder where that
 is read-only, so only the first run on a machine compiles (a second or
 two); where neither is writable, each process compiles afresh, with a
 warning. Functions that kernels call (``compiled_helper``) are compiled with
-the first kernel that names them, into its cached code.
+the first kernel of their module that runs, into its cached code.
 """
 
 from __future__ import annotations
@@ -34,10 +34,11 @@ _helpers_compiling = threading.Lock()
 def compiled_helper(helper: Kernel) -> Kernel:
     """``helper``, a function that compiled kernels call, compiled as a function of its
     own (not inlined: a loop vectorises best apart from its caller's code, and inlining
-    costs seconds of compiling). It is compiled with the first kernel that names it in
-    its module (a name imported into that module, or a helper's module, counts; a
-    ``module.helper`` attribute does not), in place of the module's name for it. Called
-    from Python, it runs as plain Python before that, compiled after."""
+    costs seconds of compiling). It must live in the module of the kernels that call it:
+    Numba's cache knows a kernel's source file only, so a helper elsewhere could change
+    without the cached kernel noticing. It is compiled with the first kernel of that
+    module that runs, in place of the module's name for it; called from Python, it runs
+    as plain Python before that, compiled after."""
     setattr(helper, HELPER, True)
     return helper
 
@@ -62,15 +63,11 @@ def _compile(kernel: Callable[..., Any]) -> Callable[..., Any]:
     from numba import njit  # Here: only processes that run a kernel load it.
 
     with _helpers_compiling:
-        # The helpers the kernel's module names, and the helpers that theirs name.
-        modules = [kernel.__globals__]
-        for names in modules:
-            for name, value in list(names.items()):
-                # A compiled one keeps the mark (Numba copies the function's attributes).
-                if isinstance(value, types.FunctionType) and getattr(value, HELPER, False):
-                    names[name] = njit(value)
-                    if all(value.__globals__ is not known for known in modules):
-                        modules.append(value.__globals__)
+        names = kernel.__globals__
+        for name, value in list(names.items()):
+            # A compiled one keeps the mark (Numba copies the function's attributes).
+            if isinstance(value, types.FunctionType) and getattr(value, HELPER, False):
+                names[name] = njit(value)
     try:
         return njit(cache=True, nogil=True)(kernel)
     except RuntimeError as exc:  # "cannot cache function ...: no locator available".

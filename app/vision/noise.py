@@ -57,8 +57,8 @@ def _median_level(difference: GrayImage, moving: Mask, skip_moving: bool) -> flo
     rows, cols = difference.shape
     for y in range(0, rows, 2):
         for x in range(0, cols, 2):
-            counted = not skip_moving or moving[y, x] == 0
-            histograms[(x >> 1) & 3, difference[y, x]] += counted
+            kept = not skip_moving or moving[y, x] == 0
+            histograms[(x >> 1) & 3, difference[y, x]] += kept
     counts = histograms.sum(axis=0)
     counted = counts.sum()
     if counted < FEWEST_STILL * ((rows + 1) // 2) * ((cols + 1) // 2):

@@ -213,7 +213,7 @@ class AdaptiveBackground(MotionMethod):
         self._still_frames: np.ndarray | None = None
         self._frame_index = 0
 
-    # The model's planes, and the state's, for the steps that work on one at a time.
+    # The model's planes that the steps in Python work on.
 
     @property
     def _background(self) -> FloatImage:
@@ -224,16 +224,6 @@ class AdaptiveBackground(MotionMethod):
     def _alternate(self) -> FloatImage:
         assert self._model is not None
         return self._model[kernels.ALTERNATE]
-
-    @property
-    def _settled(self) -> np.ndarray:
-        assert self._state is not None
-        return self._state[kernels.SETTLED]
-
-    @property
-    def _previous_raw(self) -> Mask:
-        assert self._state is not None
-        return self._state[self._raw_plane]
 
     def apply(self, gray: GrayImage) -> MotionResult:
         if gray.dtype != np.uint8 or gray.ndim != 2:
@@ -268,7 +258,7 @@ class AdaptiveBackground(MotionMethod):
         # knock, the frame is compared only: the noise is seeded from it, or the knock
         # frame teaches it nothing.
         fast = not followed and self.noise.sigma is not None
-        rates = self._rates(threshold, learning)
+        rates = self._rates(learning)
         settings = np.empty(kernels.SETTINGS, np.int64)
         settings[kernels.LEARN_ONLY] = False  # Compare first.
         settings[kernels.LEARNING] = learning
@@ -277,9 +267,9 @@ class AdaptiveBackground(MotionMethod):
         # past the deaf rim a start-up ghost has, and settle sooner.
         settings[kernels.REACH] = LEARNING_REACH if learning else 1
         settings[kernels.SETTLE_FRAMES] = LEARNING_SETTLE_FRAMES if learning else self.settle_frames
-        settings[kernels.MARGIN] = round(threshold * self.weak_fraction)
         settings[kernels.RAW_PLANE] = raw_plane
         settings[kernels.GAIN_STEP] = GAIN_GRID
+        self._set_threshold(threshold, rates, settings)
         bounds = np.empty(kernels.BOUNDS)
         bounds[kernels.GAIN_LIMIT] = GAIN_INLIERS * threshold
         bounds[kernels.COMPARE_ONLY_ABOVE] = (
@@ -308,8 +298,7 @@ class AdaptiveBackground(MotionMethod):
                 self.noise.update(difference, gray)
                 threshold = float(self.threshold)
                 changed = int(np.count_nonzero(difference > math.floor(threshold)))
-                rates[:] = self._rates(threshold, learning, rates[kernels.GAIN])
-                settings[kernels.MARGIN] = round(threshold * self.weak_fraction)
+                self._set_threshold(threshold, rates, settings)
             if changed > self.light_switch_fraction * gray.size and self._lights_changed(
                 gray, difference, threshold
             ):
@@ -332,22 +321,17 @@ class AdaptiveBackground(MotionMethod):
         if not followed:
             self.noise.update(difference, gray, self._previous_mask if crowded else None)
         if self._frame_index % self.check_every == 0:
-            self._absorb_still_regions(gray, mask, self._state[kernels.STIRRING])
+            self._absorb_still_regions(gray, mask)
         self._recent.append(gray)
         self._previous_mask = mask
         self._raw_plane = raw_plane
         self._previous_moving = moving
         return MotionResult(mask, difference, threshold)
 
-    def _rates(self, threshold: float, learning: bool, gain: float = 1.0) -> np.ndarray:
-        """A frame's float32 settings (``kernels.RATES``); ``kernels.step`` sets the gain.
-        The noise is the estimate as it was when the frame was thresholded: it learns
-        from the frame for the next."""
+    def _rates(self, learning: bool) -> np.ndarray:
+        """A frame's float32 settings (``kernels.RATES``) but those of its threshold
+        (``_set_threshold``); ``kernels.step`` sets the gain."""
         rates = np.empty(kernels.RATES, np.float32)
-        rates[kernels.GAIN] = gain
-        rates[kernels.THRESHOLD] = threshold
-        rates[kernels.LEVEL] = math.floor(threshold)
-        rates[kernels.NOISE_DEVIATION] = MEAN_ABS_NOISE * (self.noise.sigma or 0.0)
         rates[kernels.K] = self.noise.k
         rates[kernels.WEAK_FRACTION] = self.weak_fraction
         rates[kernels.ESTABLISHED_WEIGHT] = 255.0 * self.mode_weight
@@ -357,6 +341,15 @@ class AdaptiveBackground(MotionMethod):
         rates[kernels.DEVIATION_RATE] = 1.0 / self._frame_index if learning else self.deviation_rate
         rates[kernels.NEAR_MOTION_RATE] = NEAR_MOTION_DEVIATION_SHARE * self.deviation_rate
         return rates
+
+    def _set_threshold(self, threshold: float, rates: np.ndarray, settings: np.ndarray) -> None:
+        """The settings that follow from the frame's threshold and noise: the noise as the
+        estimate was when the frame was thresholded (it learns from the frame for the
+        next), and the ghost step's margin."""
+        rates[kernels.THRESHOLD] = threshold
+        rates[kernels.LEVEL] = math.floor(threshold)
+        rates[kernels.NOISE_DEVIATION] = MEAN_ABS_NOISE * (self.noise.sigma or 0.0)
+        settings[kernels.MARGIN] = round(threshold * self.weak_fraction)
 
     def _learn(self, gray: GrayImage) -> MotionResult:
         """Take this frame as the background (first frame, or after a light switch).
@@ -429,14 +422,16 @@ class AdaptiveBackground(MotionMethod):
         mapped = relit(old_background, gray, ~where, threshold**2)
         self._background[where] = mapped[where]
         self._alternate[...] = self._background
-        self._settled[where] = 0
+        assert self._state is not None
+        self._state[kernels.SETTLED][where] = 0
         self._previous_mask = kept
         self._previous_moving = kept_pixels
 
     def _sudden(self, moving: int) -> bool:
         """Whether ``moving`` raw pixels are many times last frame's: what a knock does,
         where an object coming closer grows frame by frame."""
-        return moving > SUDDEN_GROWTH * cv2.countNonZero(self._previous_raw)
+        assert self._state is not None
+        return moving > SUDDEN_GROWTH * cv2.countNonZero(self._state[self._raw_plane])
 
     def _scene_shift(self, gray: GrayImage, threshold: float) -> tuple[float, float] | None:
         """How far (x, y pixels) the scene moved in the picture, where the camera was
@@ -505,7 +500,7 @@ class AdaptiveBackground(MotionMethod):
             self._state[plane] = moved(self._state[plane], smooth=False)
         self._still_frames = moved(self._still_frames, smooth=False)
 
-    def _absorb_still_regions(self, gray: GrayImage, mask: Mask, stirring: Mask) -> None:
+    def _absorb_still_regions(self, gray: GrayImage, mask: Mask) -> None:
         """Count, per motion region, frames without any change; absorb the stale ones."""
         assert self._still_frames is not None and self._state is not None
         # 16-bit labels (half the memory to sweep) where they surely suffice: 8-connected
@@ -517,7 +512,7 @@ class AdaptiveBackground(MotionMethod):
         kernels.age_still_regions(
             labels,
             regions,
-            stirring,
+            self._state[kernels.STIRRING],
             gray,
             self.check_every,
             self.absorb_after,

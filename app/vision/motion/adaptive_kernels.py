@@ -228,50 +228,49 @@ def step(
     previous_rows = np.zeros(rows, np.bool_)
     if near_motion_known:
         for y in range(rows):
-            previous_rows[y] = holds_any(previous_mask[y])
+            previous_rows[y] = _holds_any(previous_mask[y])
     strong_rows = np.zeros(rows, np.bool_)
     moving_rows = np.zeros(rows, np.bool_)
     stirring_rows = np.zeros(rows, np.bool_)
     moving = 0
-    for step in range(rows + LIMIT_AHEAD + GHOST_BEHIND):
-        ahead = step
+    for ahead in range(rows + LIMIT_AHEAD + GHOST_BEHIND):
         if ahead < rows:
             _limit_row(deviation, ahead, noise_deviation, k, offset, rings[_LIMIT, ahead % RING])
             _above_row(difference, ahead, level, raw_out)
-        pixel = step - 1  # Each pixel's threshold and the strong pixels: the 3x3 is known.
+        pixel = ahead - 1  # Each pixel's threshold and the strong pixels: the 3x3 is known.
         if 0 <= pixel < rows:
             # Leaves and edges shift by a pixel or so, so a neighbour's variability is a
             # pixel's own a moment later: its threshold is the largest in its 3x3.
-            column_extreme(rings[_LIMIT], pixel, 1, rows, True, row)
+            _column_extreme(rings[_LIMIT], pixel, 1, rows, True, row)
             per_pixel = rings[_PER_PIXEL, pixel % RING]
-            spread_row(row, 1, True, per_pixel)
+            _spread_row(row, 1, True, per_pixel)
             strong = rings[_STRONG, pixel % RING]
             _above_each_row(difference[pixel], per_pixel, strong)
-            strong_rows[pixel] = holds_any(strong)
-        learned = step - LIMIT_AHEAD
+            strong_rows[pixel] = _holds_any(strong)
+        learned = ahead - LIMIT_AHEAD
         if 0 <= learned < rows:
             # Hysteresis: pixels above half their threshold count where a strong one
             # (above it) is near, so low-contrast objects come out whole and weak
             # noise stays out.
-            if any_near(strong_rows, learned, 2):
+            if _any_near(strong_rows, learned, 2):
                 # The strong pixels' 5x5 ellipse: 5 wide over 3 rows, and the middle
                 # column over 5.
-                column_extreme(rings[_STRONG], learned, 1, rows, True, row)
-                spread_row(row, 2, True, grown)
-                column_extreme(rings[_STRONG], learned, 2, rows, True, row)
-                merge_row(row, True, grown)
+                _column_extreme(rings[_STRONG], learned, 1, rows, True, row)
+                _spread_row(row, 2, True, grown)
+                _column_extreme(rings[_STRONG], learned, 2, rows, True, row)
+                _merge_row(row, True, grown)
             else:
                 grown[:] = 0
             if learning:
                 # While the scene is learned, a flip deep inside a solid region is an
                 # object stepping in or a ghost uncovered, not a sway: it does not teach.
-                column_extreme(raw_out, learned, LEARNING_REACH, rows, False, row)
-                spread_row(row, LEARNING_REACH, False, solid)
-            elif any_near(previous_rows, learned, LEARNING_REACH):
+                _column_extreme(raw_out, learned, LEARNING_REACH, rows, False, row)
+                _spread_row(row, LEARNING_REACH, False, solid)
+            elif _any_near(previous_rows, learned, LEARNING_REACH):
                 # Still pixels next to the last frame's motion may be an object's
                 # unseen parts: they teach the variability slowly.
-                column_extreme(previous_mask, learned, LEARNING_REACH, rows, True, row)
-                spread_row(row, LEARNING_REACH, True, near_motion)
+                _column_extreme(previous_mask, learned, LEARNING_REACH, rows, True, row)
+                _spread_row(row, LEARNING_REACH, True, near_motion)
             else:
                 near_motion[:] = 0
             at = learned % RING
@@ -302,12 +301,12 @@ def step(
             moving += count
             moving_rows[learned] = count > 0
             _stirring_row(gray, lagged, rings[_CHANGING, at], level, stirring_out, learned)
-            stirring_rows[learned] = holds_any(stirring_out[learned])
+            stirring_rows[learned] = _holds_any(stirring_out[learned])
         ghost = learned - GHOST_BEHIND
         if 0 <= ghost < rows and moving_rows[ghost]:
-            if any_near(stirring_rows, ghost, GUARD_REACH):
-                column_extreme(stirring_out, ghost, GUARD_REACH, rows, True, row)
-                spread_row(row, GUARD_REACH, True, near_stirring)
+            if _any_near(stirring_rows, ghost, GUARD_REACH):
+                _column_extreme(stirring_out, ghost, GUARD_REACH, rows, True, row)
+                _spread_row(row, GUARD_REACH, True, near_stirring)
             else:
                 near_stirring[:] = 0
             _absorb_ghosts_row(
@@ -572,9 +571,9 @@ def _absorb_ghosts_row(
     margin: int,
     background: FloatImage,
 ) -> None:
-    """Row ``y``'s moving pixels that do not change and sit within ``margin`` of the
-    range of the background of the still pixels within ``reach`` (``rounded``, a ring
-    of rows) become background at once.
+    """Row ``y``'s moving pixels (the caller calls only for a row that has some) that do
+    not change and sit within ``margin`` of the range of the background of the still
+    pixels within ``reach`` (``rounded``, a ring of rows) become background at once.
 
     Where something sat in the first frame and left, the uncovered background
     matches its still neighbours: a ghost, which this eats from its rim inwards
@@ -596,12 +595,7 @@ def _absorb_ghosts_row(
     where it looks like a ghost.
     """
     rows, cols = mask.shape
-    seen = np.uint8(0)
-    for x in range(cols):
-        seen |= mask[y, x]
-    if not seen:
-        return  # Most rows, in most frames.
-    first, end = 0, cols  # From the row's first moving pixel to its last.
+    first, end = 0, cols  # From the row's first moving pixel to its last (it has one).
     while mask[y, first] == 0:
         first += 1
     while mask[y, end - 1] == 0:
@@ -630,7 +624,7 @@ def _absorb_ghosts_row(
 
 
 @compiled_helper
-def holds_any(values: GrayImage) -> bool:
+def _holds_any(values: GrayImage) -> bool:
     """Whether any of a row's values is set."""
     largest = np.uint8(0)
     for x in range(values.size):
@@ -639,7 +633,7 @@ def holds_any(values: GrayImage) -> bool:
 
 
 @compiled_helper
-def any_near(flags: np.ndarray, row: int, reach: int) -> bool:
+def _any_near(flags: np.ndarray, row: int, reach: int) -> bool:
     """Whether any of ``flags`` within ``reach`` of ``row`` is set."""
     for other in range(max(row - reach, 0), min(row + reach + 1, flags.size)):
         if flags[other]:
@@ -648,7 +642,7 @@ def any_near(flags: np.ndarray, row: int, reach: int) -> bool:
 
 
 @compiled_helper
-def column_extreme(
+def _column_extreme(
     image: np.ndarray, row: int, reach: int, rows: int, largest: bool, out: GrayImage
 ) -> None:
     """Per column, the largest (or smallest) of the rows within ``reach`` of ``row``
@@ -659,11 +653,11 @@ def column_extreme(
     for x in range(out.size):
         out[x] = image[source, x]
     for other in range(max(row - reach, 0), min(row + reach + 1, rows)):
-        merge_row(image[other % held], largest, out)
+        _merge_row(image[other % held], largest, out)
 
 
 @compiled_helper
-def merge_row(values: GrayImage, largest: bool, out: GrayImage) -> None:
+def _merge_row(values: GrayImage, largest: bool, out: GrayImage) -> None:
     """``out``, each value the larger (or smaller) of itself and ``values``'."""
     if largest:
         for x in range(out.size):
@@ -674,7 +668,7 @@ def merge_row(values: GrayImage, largest: bool, out: GrayImage) -> None:
 
 
 @compiled_helper
-def spread_row(values: GrayImage, reach: int, largest: bool, out: GrayImage) -> None:
+def _spread_row(values: GrayImage, reach: int, largest: bool, out: GrayImage) -> None:
     """Per column, the largest (or smallest) of ``values`` within ``reach`` columns
     (inside the row), into ``out``."""
     cols = values.size

@@ -147,20 +147,25 @@ def test_logging_out_ends_the_streams_and_sockets_of_that_session(
     server = serve(password=PASSWORD, demo_camera=True)
     with logged_in(server) as client:
         camera_id = client.get("/api/cameras").json()[0]["id"]
-        ended = threading.Event()
+        watching, ended = threading.Event(), threading.Event()
 
         def watch() -> None:
-            with client.stream("GET", f"/api/cameras/{camera_id}/stream.mjpg") as stream:
-                chunks = stream.iter_bytes()
-                read_mjpeg_frames(chunks, 1)
-                for _ in chunks:
-                    pass
-            ended.set()
+            try:
+                with client.stream("GET", f"/api/cameras/{camera_id}/stream.mjpg") as stream:
+                    chunks = stream.iter_bytes()
+                    read_mjpeg_frames(chunks, 1)
+                    watching.set()
+                    for _ in chunks:
+                        pass
+            finally:
+                ended.set()
 
         viewer = threading.Thread(target=watch, daemon=True)
         viewer.start()
         with connect(server.ws, open_timeout=10, additional_headers=cookie_header(client)) as ws:
             ws.recv(timeout=10)  # A status message: the socket is live.
+            # The demo camera's first picture may take a while on a slow machine.
+            assert watching.wait(20), "the stream showed no picture"
             time.sleep(0.5)
             assert not ended.is_set()
             assert client.post("/api/logout").status_code == 204

@@ -109,7 +109,7 @@ def test_ignore_zones_drawn_on_the_picture_are_saved_and_shown(
     page.goto(server.base + "/")
     card = page.locator(f'.card[data-id="{cam}"]')
     page.wait_for_function(
-        f"() => document.querySelector('.card[data-id=\"{cam}\"] img.live').naturalWidth > 0",
+        f"() => document.querySelector('.card[data-id=\"{cam}\"] img.live')?.naturalWidth > 0",
         timeout=20000,
     )
     card.locator("button.zones").click()

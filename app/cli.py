@@ -171,6 +171,13 @@ def build_parser() -> argparse.ArgumentParser:
         help=f"detect on frames at most this wide, 0 = full size, else at least "
         f"{MIN_DETECT_WIDTH} (default 320)",
     )
+    analyze.add_argument(
+        "--no-background-scan",
+        dest="background_scan",
+        action="store_false",
+        help="learn the scene from the first frame, as a live camera does, instead of "
+        "estimating it first from frames sampled over the first 30 s",
+    )
     analyze.add_argument("--quiet", action="store_true", help="no progress bar and no summary")
 
     evaluate = commands.add_parser("evaluate", help="score an analyze output folder against truth")
@@ -241,6 +248,7 @@ def _analyze(args: argparse.Namespace) -> int:
             truth=args.truth,
             calibration=calibration,
             fps=args.fps,
+            background_scan=args.background_scan,
         )
         with _ProgressBar(enabled=not args.quiet and sys.stderr.isatty()) as bar:
             report = analyze(args.input, out, options, progress=bar.update)

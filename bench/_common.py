@@ -11,7 +11,7 @@ import os
 import platform
 import statistics
 import sys
-from collections.abc import Iterable, Iterator, Sequence
+from collections.abc import Iterator, Sequence
 from pathlib import Path
 
 REPO_ROOT = Path(__file__).resolve().parent.parent
@@ -21,6 +21,7 @@ if str(REPO_ROOT) not in sys.path:
 import cv2  # noqa: E402
 import numpy as np  # noqa: E402
 
+from app.analysis.runner import scan_background  # noqa: E402
 from app.vision.motion import DEFAULT_METHOD, METHODS  # noqa: E402
 from app.vision.pipeline import FrameResult, Pipeline, PipelineConfig  # noqa: E402
 from app.vision.types import Image  # noqa: E402
@@ -78,9 +79,15 @@ def make_pipeline(method: str, fps: float) -> Pipeline:
     return Pipeline(PipelineConfig(method=method), fps=fps)
 
 
-def run_pipeline(method: str, frames: Iterable[Image], fps: float) -> Iterator[FrameResult]:
-    """Results of a fresh pipeline over ``frames``, one per frame, in order."""
+def run_pipeline(
+    method: str, frames: Sequence[Image], fps: float, background_scan: bool = False
+) -> Iterator[FrameResult]:
+    """Results of a fresh pipeline over ``frames``, one per frame, in order; with
+    ``background_scan``, the pipeline first scans them for the empty scene, as
+    ``vigil analyze`` does (a live camera cannot)."""
     pipeline = make_pipeline(method, fps)
+    if background_scan:
+        scan_background(pipeline, frames, fps)
     for frame in frames:
         yield pipeline.process(frame)
 

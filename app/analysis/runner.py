@@ -2,10 +2,12 @@
 
 from __future__ import annotations
 
+import functools
+import itertools
 import math
 import statistics
 import time
-from collections.abc import Callable
+from collections.abc import Callable, Iterable
 from dataclasses import asdict, dataclass, field
 from pathlib import Path
 from typing import Any
@@ -28,7 +30,8 @@ from app.vision.calibration import GroundPlane
 from app.vision.detections import Detection
 from app.vision.pipeline import FrameResult, Pipeline, PipelineConfig
 from app.vision.preprocess import to_size
-from app.vision.types import Image
+from app.vision.scene_background import EvenSample, SceneBackground
+from app.vision.types import GrayImage, Image
 
 Progress = Callable[[int, int | None], None]
 """Called with (frames done, frames expected or None) as the analysis goes."""
@@ -36,6 +39,12 @@ MAX_FRAMES_NAMED = 10
 """Skipped frames a warning names one by one (report.json lists them all)."""
 FrameObserver = Callable[[Image], None]
 """Called with each annotated frame (for a live view of a running analysis)."""
+BACKGROUND_SCAN_S = 30.0
+"""Seconds of video, from the start, that the background scan samples."""
+BACKGROUND_SCAN_FRAMES = 1500
+"""The most frames the background scan reads, whatever the frame rate."""
+BACKGROUND_SAMPLES = 32
+"""Frames the scan keeps, at least (``EvenSample``: fewer than twice as many)."""
 
 
 @dataclass(frozen=True)
@@ -52,6 +61,10 @@ class AnalysisOptions:
     """Seconds without motion that end an event."""
     input_name: str | None = None
     """How the report names the input (an upload's own file name); default its path."""
+    background_scan: bool = True
+    """Estimate the empty scene from the video's first ``BACKGROUND_SCAN_S`` seconds before
+    detecting (``app.vision.scene_background``), rather than learn it from the first frame
+    as a live camera must."""
 
 
 @dataclass
@@ -136,6 +149,40 @@ def analyze(
     return _Analysis(source, out_dir, options, truth, progress, on_frame).run()
 
 
+@dataclass(frozen=True)
+class BackgroundScan:
+    """What the background scan read, and the scene it found (None: too few frames, or a
+    method that learns from the first frame whatever it is given)."""
+
+    frames: int
+    samples: int
+    scene: SceneBackground | None
+    seconds: float
+
+    def as_dict(self) -> dict[str, Any]:
+        return {
+            "frames": self.frames,
+            "samples": self.samples,
+            "used": self.scene is not None,
+            "view_changed": self.scene is not None and self.scene.view_changed,
+            "seconds": round(self.seconds, 3),
+        }
+
+
+def scan_background(pipeline: Pipeline, frames: Iterable[Image], fps: float) -> BackgroundScan:
+    """Sample the first ``BACKGROUND_SCAN_S`` seconds of ``frames`` evenly and have
+    ``pipeline`` start from the empty scene they show."""
+    started = time.perf_counter()
+    limit = min(BACKGROUND_SCAN_FRAMES, math.ceil(BACKGROUND_SCAN_S * fps))
+    sample: EvenSample[GrayImage] = EvenSample(BACKGROUND_SAMPLES)
+    scanned = 0
+    for frame in itertools.islice(frames, limit):
+        sample.offer(functools.partial(pipeline.prepare, frame))
+        scanned += 1
+    scene = pipeline.seed_background(sample.items)
+    return BackgroundScan(scanned, len(sample.items), scene, time.perf_counter() - started)
+
+
 class _Analysis:
     def __init__(
         self,
@@ -160,9 +207,11 @@ class _Analysis:
         self.scoring = Scorer(truth, options.pipeline.min_area, source.size) if truth else None
         self.first_frame: Image | None = None
         self.key_frames: list[dict[str, Any]] = []
+        self.background: dict[str, Any] | None = None
 
     def run(self) -> dict[str, Any]:
         started = time.perf_counter()
+        self.background = self._scan_background() if self.options.background_scan else None
         tracks_csv = TracksCsv(self.out / "tracks.csv")
         video = AnnotatedVideo(self.out / "annotated.avi", self.source.fps, self.source.size)
         frames = 0
@@ -196,6 +245,13 @@ class _Analysis:
         write_json(self.out / "report.json", report)
         write_report_html(self.out / "report.html", report, self._html_extras())
         return report
+
+    def _scan_background(self) -> dict[str, Any]:
+        frames = self.source.frames()
+        try:
+            return scan_background(self.pipeline, frames, self.source.fps).as_dict()
+        finally:
+            frames.close()
 
     def _record(self, result: FrameResult, annotated: Image) -> None:
         index, time_s = result.index, result.time_s
@@ -271,6 +327,7 @@ class _Analysis:
             "duration_s": round(self.source.frames_read / self.source.fps, 4),
             "method": config.method,
             "settings": _settings(config, self.pipeline, self.options),
+            "background_scan": self.background,
             "tracks": [t.as_dict() for t in sorted(self.tracks.values(), key=lambda t: t.track_id)],
             "events": len(self.events),
             "frame_stats": self.frame_stats,
@@ -326,4 +383,5 @@ def _settings(
     settings["threshold_in_force"] = round(pipeline.method.threshold, 2)
     settings["calibrated"] = options.calibration is not None
     settings["quiet_s"] = options.quiet_s
+    settings["background_scan"] = options.background_scan
     return settings

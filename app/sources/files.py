@@ -12,7 +12,7 @@ from __future__ import annotations
 
 import math
 import re
-from collections.abc import Iterator
+from collections.abc import Generator, Iterator
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -108,8 +108,8 @@ class VideoInput:
             return False
         return self.header_frames - self.frames_read > max(1, self.header_frames * HEADER_SLACK)
 
-    def frames(self) -> Iterator[Image]:
-        """The frames that decode, in order."""
+    def frames(self) -> Generator[Image]:
+        """The frames that decode, in order (``close`` it to stop reading early)."""
         for _, frame in self.indexed_frames():
             yield frame
 

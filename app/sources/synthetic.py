@@ -310,3 +310,51 @@ def standard_scenes() -> dict[str, Scene]:
         ),
         "swaying-empty": Scene(name="swaying-empty", frames=150, sway_region=(40, 30, 160, 150)),
     }
+
+
+def in_view_scenes() -> dict[str, Scene]:
+    """Scenes whose objects are in view at frame 0, as a recording may start: what
+    offline mode's background scan is for (``app.vision.scene_background``)."""
+    return {
+        "box-in-view": Scene(
+            name="box-in-view",
+            frames=90,
+            objects=(MovingObject((60, 100), (30.0, 0.0), (40, 40), 200),),
+        ),
+        "uniform-box-in-view": Scene(
+            name="uniform-box-in-view",
+            frames=90,
+            objects=(MovingObject((60, 100), (20.0, 0.0), (40, 40), 200, textured=False),),
+        ),
+        # A dark, uniform car driving off its first-frame spot, in view to the last frame:
+        # it covers the middle of its path for most of the clip.
+        "dark-car-in-view": Scene(
+            name="dark-car-in-view",
+            frames=120,
+            objects=(MovingObject((40, 120), (15.0, 0.0), (70, 35), 30, textured=False),),
+        ),
+        "two-ways-in-view": Scene(
+            name="two-ways-in-view",
+            frames=90,
+            objects=(
+                MovingObject((100, 60), (25.0, 0.0), (30, 50), 190),
+                MovingObject((180, 140), (-25.0, 5.0), (30, 50), 40),
+            ),
+        ),
+        "slow-in-view": Scene(
+            name="slow-in-view",
+            frames=150,
+            objects=(MovingObject((120, 90), (8.0, 0.0), (40, 60), 160),),
+        ),
+        "fast-in-view": Scene(
+            name="fast-in-view",
+            frames=60,
+            objects=(MovingObject((30, 30), (60.0, 40.0), (20, 20), 220),),
+        ),
+        "walks-away": Scene(
+            name="walks-away",
+            fps=25.0,
+            frames=100,
+            objects=(MovingObject((150, 100), (-40.0, 0.0), (28, 44), 60),),
+        ),
+    }

@@ -9,9 +9,9 @@ from __future__ import annotations
 
 import time
 from collections import defaultdict, deque
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field, replace
-from typing import ParamSpec, TypeVar
+from typing import ParamSpec, Protocol, TypeVar
 
 import cv2
 
@@ -22,6 +22,7 @@ from app.vision.histogram import GreyStats, grey_stats
 from app.vision.morphology import Morphology
 from app.vision.motion import DEFAULT_METHOD, MotionResult, create_method
 from app.vision.preprocess import Denoise, DenoiseMethod, Downscale, Enhance, EnhanceMethod, to_gray
+from app.vision.scene_background import SceneBackground, estimate_scene_background
 from app.vision.tracker import Tracker, TrackerConfig
 from app.vision.types import GrayImage, Image, Mask
 from app.vision.zones import IgnoreZones, Polygon
@@ -133,10 +134,8 @@ class Pipeline:
         clock = _StageClock(self.timings)
         gray = clock("grayscale", to_gray, frame)
         stats = clock("histogram", grey_stats, gray) if self.config.grey_stats else None
-        small = clock("downscale", self.downscale, gray)
+        small = self._prepare(gray, clock)
         scale = (frame_width or gray.shape[1]) / small.shape[1]
-        small = clock("denoise", self.denoise, small)
-        small = clock("enhance", self.enhance, small)
         motion: MotionResult = clock("segment", self.method.apply, small)
         mask = clock("zones", self.zones, motion.mask)
         if cv2.countNonZero(mask):
@@ -161,6 +160,23 @@ class Pipeline:
             scale,
         )
 
+    def prepare(self, frame: Image) -> GrayImage:
+        """``frame`` as segmentation sees it: grey, downscaled, denoised and enhanced."""
+        return self._prepare(to_gray(frame), _untimed)
+
+    def seed_background(self, samples: Sequence[GrayImage]) -> SceneBackground | None:
+        """Estimate the empty scene from ``samples`` (frames as ``prepare`` gives them,
+        taken evenly and in order from the video ahead) and have the method start from
+        it; the estimate, or None where there are too few samples or the method cannot
+        use one."""
+        scene = estimate_scene_background(samples)
+        return scene if scene is not None and self.method.seed(scene) else None
+
+    def _prepare(self, gray: GrayImage, clock: Clock) -> GrayImage:
+        small = clock("downscale", self.downscale, gray)
+        small = clock("denoise", self.denoise, small)
+        return clock("enhance", self.enhance, small)
+
     def reset(self) -> None:
         self.method.reset()
         self.tracker.reset()
@@ -169,6 +185,15 @@ class Pipeline:
 
 P = ParamSpec("P")
 R = TypeVar("R")
+
+
+class Clock(Protocol):
+    def __call__(self, stage: str, fn: Callable[P, R], *args: P.args, **kwargs: P.kwargs) -> R: ...
+
+
+def _untimed(stage: str, fn: Callable[P, R], *args: P.args, **kwargs: P.kwargs) -> R:
+    """A ``Clock`` that keeps no time (work outside the frame-by-frame run)."""
+    return fn(*args, **kwargs)
 
 
 class _StageClock:

@@ -85,6 +85,7 @@ import numpy as np
 from app.vision.motion import adaptive_kernels as kernels
 from app.vision.motion.adaptive_kernels import GUARD_REACH, LEARNING_REACH
 from app.vision.motion.base import MotionMethod, MotionResult
+from app.vision.scene_background import END_SAMPLES, SceneBackground
 from app.vision.types import FloatImage, GrayImage, Mask
 
 MEAN_ABS_NOISE = math.sqrt(2.0 / math.pi)
@@ -212,6 +213,8 @@ class AdaptiveBackground(MotionMethod):
         """Pixels of ``_previous_mask`` that are set."""
         self._still_frames: np.ndarray | None = None
         self._frame_index = 0
+        self._scene: SceneBackground | None = None
+        """A scene to start from (``seed``), until the first frame."""
 
     # The model's planes that the steps in Python work on.
 
@@ -231,9 +234,30 @@ class AdaptiveBackground(MotionMethod):
             raise ValueError(f"needs an 8-bit grey frame, not {gray.dtype} of shape {gray.shape}")
         gray = np.ascontiguousarray(gray)
         if self._model is None or self._model.shape[1:] != gray.shape:
-            return self._learn(gray)
+            scene, self._scene = self._scene, None
+            if scene is None or scene.background.shape != gray.shape:
+                return self._learn(gray)
+            self._start_from(scene)
         self._frame_index += 1
         return self._step(gray, followed=False)
+
+    def seed(self, scene: SceneBackground) -> bool:
+        self._scene = scene
+        return True
+
+    def _start_from(self, scene: SceneBackground) -> None:
+        """Take ``scene`` as the model: its background as both modes, its variability as
+        the pixels' own, weighed as the ``END_SAMPLES`` frames it was measured over. The
+        frames after go on learning as a scene's first frames do (the variability at the
+        plain mean of its samples), so what is in view at the first frame is motion, and
+        leaves that sway are known at once and better known soon."""
+        rounded = np.clip(np.rint(scene.background), 0, 255).astype(np.uint8)
+        self._learn(rounded)
+        assert self._model is not None
+        self._model[kernels.BACKGROUND] = scene.background
+        self._model[kernels.ALTERNATE] = scene.background
+        self._model[kernels.DEVIATION] = scene.variability
+        self._frame_index = END_SAMPLES
 
     def _step(self, gray: GrayImage, followed: bool) -> MotionResult:
         """This frame against the model; ``followed``: the second time, once the model
@@ -535,6 +559,7 @@ class AdaptiveBackground(MotionMethod):
         self._previous_moving = 0
         self._still_frames = None
         self._frame_index = 0
+        self._scene = None
 
 
 def _vertex_offset(values: np.ndarray) -> float:

@@ -9,6 +9,7 @@ from typing import ClassVar
 import cv2
 
 from app.vision.noise import NoiseEstimator
+from app.vision.scene_background import SceneBackground
 from app.vision.types import GrayImage, Mask
 
 
@@ -63,6 +64,12 @@ class MotionMethod(ABC):
     def threshold(self) -> float:
         """The grey-level threshold in force for the next frame."""
         return self._sensitivity if self._sensitivity is not None else self.noise.threshold
+
+    def seed(self, scene: SceneBackground) -> bool:
+        """Start from ``scene`` (estimated ahead, offline) rather than from the first frame,
+        if the method can; whether it will. The first frame given to ``apply`` after this
+        is compared with the scene; ``reset`` forgets it."""
+        return False
 
     @abstractmethod
     def apply(self, gray: GrayImage) -> MotionResult:

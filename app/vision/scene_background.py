@@ -1,0 +1,229 @@
+"""The empty scene of a recorded clip, estimated before detection starts (offline mode).
+
+A live camera must learn its scene from the first frame it sees: whatever
+stands in view then becomes background, leaves a ghost where it stood when it
+moves off, and is missed wherever it passes over its own first picture. A
+recording can be looked ahead in. Frames sampled evenly over its first seconds
+show each pixel both with and without the objects that pass it, and the
+background is estimated from them:
+
+* **Both ends** — the median of the first few samples (the start) and of the
+  last few (the end) each hide what moves through quickly. Where the two agree,
+  the pixel shows the scene at both ends, however long something covered it in
+  between (a slow car covers the middle of its path most of the time: a median
+  over all samples would take the car for the scene there).
+* **Where they disagree** something stood at one end. Per region of
+  disagreement, the end whose picture continues its surroundings is the scene:
+  an object's outline is an edge across the region's border, the scene behind
+  it is not (the test the adaptive model uses for ghosts). A region too small
+  to tell by its border takes the median of all samples.
+* **The view changed** (a light switched, the camera was moved, something
+  came to fill it) where a later run of samples differs from the start over
+  much of the picture: only the samples before the change count, and the
+  model's own light-switch and knock handling take the change when it comes.
+
+Each pixel's variability (its mean deviation from the background while it
+shows it) comes from the end samples that show the background there (a robust
+median deviation, so a sample with an object passing does not count): leaves
+that sway are known from the first frame on.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass
+from typing import Generic, TypeVar
+
+import cv2
+import numpy as np
+
+from app.vision.noise import HALF_NORMAL_MEDIAN
+from app.vision.types import FloatImage, GrayImage
+
+END_SAMPLES = 5
+"""Samples at each end of the sampled stretch whose median shows that end."""
+
+LEAST_SAMPLES = 2 * END_SAMPLES
+"""Fewer samples than this tell nothing of the ends: no estimate."""
+
+LEAST_AGREEMENT = 12.0
+"""Grey levels: the ends' medians within this of each other (or within three standard
+deviations of the camera's noise, where that is more) show the same scene."""
+
+MEAN_ABS_PER_MEDIAN_ABS = 0.7979 / HALF_NORMAL_MEDIAN
+"""E|X| / median(|X|) for Gaussian X: a robust mean deviation from a median one."""
+
+VIEW_CHANGED_SHARE = 0.25
+"""Samples differing from the start over more than this share of the picture: the view
+itself changed."""
+
+CAMERA_MOVED_PX = 1.5
+"""Pixels: samples whose picture is the start's shifted this far show a camera that moved."""
+
+SHIFT_EXPLAINS = 0.25
+"""A shift of the view explains a change where, with the start shifted by it, at most
+this share of the pixels that differed still differ (the objects that moved)."""
+
+LEAST_REGION = 16
+"""Pixels: a region of disagreement smaller than this has no border to judge it by."""
+
+T = TypeVar("T")
+
+
+@dataclass(frozen=True)
+class SceneBackground:
+    """What a clip shows where nothing moves, at the size detection runs at."""
+
+    background: FloatImage
+    """Grey levels, float32."""
+    variability: FloatImage
+    """Each pixel's mean |frame - background| while it shows the background, float32."""
+    samples: int
+    view_changed: bool
+    """The view changed within the samples: the background is from those before."""
+
+
+class EvenSample(Generic[T]):
+    """At most ``2 x size - 1`` items spread evenly over a stream of unknown length (at
+    least ``size`` once that many have passed): every ``stride``-th, the stride doubling
+    (and every other item kept dropped) whenever twice ``size`` are held."""
+
+    def __init__(self, size: int) -> None:
+        if size < 1:
+            raise ValueError(f"a sample holds at least one item, not {size}")
+        self.size = size
+        self.items: list[T] = []
+        self.stride = 1
+        self._offered = 0
+
+    def offer(self, make: Callable[[], T]) -> None:
+        """The stream's next item; ``make`` builds it, called only where it is kept."""
+        if self._offered % self.stride == 0:
+            self.items.append(make())
+            if len(self.items) == 2 * self.size:
+                self.items = self.items[::2]
+                self.stride *= 2
+        self._offered += 1
+
+
+def estimate_scene_background(samples: Sequence[GrayImage]) -> SceneBackground | None:
+    """The background and its variability from grey frames sampled in order over a clip
+    (all one size); None where there are fewer than ``LEAST_SAMPLES``."""
+    if len(samples) < LEAST_SAMPLES:
+        return None
+    stack = np.stack(samples).astype(np.float32)
+    start = np.median(stack[:END_SAMPLES], axis=0)
+    # The camera's noise, from how far the start's samples stray from their median (the
+    # ends' medians differ by less than a sample does).
+    noise = float(np.median(np.abs(stack[:END_SAMPLES] - start))) / HALF_NORMAL_MEDIAN
+    agreement = max(LEAST_AGREEMENT, 3.0 * noise)
+    same_view = _same_view(stack, start, agreement)
+    view_changed = same_view < len(stack)
+    stack = stack[:same_view]
+    end = np.median(stack[-END_SAMPLES:], axis=0)
+    disagree = np.abs(start - end) > agreement
+    background = (start + end) / 2
+    shows_start = _pick_ends(start, end, disagree, stack, background)
+    # Where the ends agree, both show the scene; elsewhere only the end chosen does.
+    ends = np.concatenate((stack[:END_SAMPLES], stack[-END_SAMPLES:]))
+    deviation = np.where(
+        disagree,
+        np.where(
+            shows_start,
+            np.median(np.abs(stack[:END_SAMPLES] - background), axis=0),
+            np.median(np.abs(stack[-END_SAMPLES:] - background), axis=0),
+        ),
+        np.median(np.abs(ends - background), axis=0),
+    )
+    variability = MEAN_ABS_PER_MEDIAN_ABS * deviation
+    return SceneBackground(
+        np.ascontiguousarray(background, np.float32),
+        np.ascontiguousarray(variability, np.float32),
+        len(samples),
+        view_changed,
+    )
+
+
+def _same_view(stack: np.ndarray, start: FloatImage, agreement: float) -> int:
+    """How many samples, from the first, show the start's view: up to the last run of
+    ``END_SAMPLES`` whose median differs from ``start`` by more than ``agreement`` over
+    at most ``VIEW_CHANGED_SHARE`` of the picture and is not the start's picture shifted
+    (a light that switched, a camera that moved, stays so: the run is sought by halving)."""
+
+    taper = cv2.createHanningWindow((start.shape[1], start.shape[0]), cv2.CV_32F)
+
+    def same(stop: int) -> bool:
+        window = np.median(stack[stop - END_SAMPLES : stop], axis=0)
+        if np.mean(np.abs(window - start) > agreement) > VIEW_CHANGED_SHARE:
+            return False
+        # A camera knocked a few pixels changes little more than the scene's edges: the
+        # view shifted is sought, and taken where it explains the change.
+        # Copies: OpenCV 5.0's phaseCorrelate applies the window to its inputs in place.
+        (dx, dy), _ = cv2.phaseCorrelate(start.copy(), window.copy(), taper)
+        if math.hypot(dx, dy) < CAMERA_MOVED_PX:
+            return True
+        height, width = start.shape
+        margin_x, margin_y = math.ceil(abs(dx)) + 1, math.ceil(abs(dy)) + 1
+        if width <= 2 * margin_x or height <= 2 * margin_y:
+            return True
+        inside = (slice(margin_y, height - margin_y), slice(margin_x, width - margin_x))
+        move = np.array([[1.0, 0.0, dx], [0.0, 1.0, dy]])
+        shifted = cv2.warpAffine(start, move, (width, height))
+        before = np.count_nonzero(np.abs(window - start)[inside] > agreement)
+        after = np.count_nonzero(np.abs(window - shifted)[inside] > agreement)
+        return not (before and after <= SHIFT_EXPLAINS * before)
+
+    if same(len(stack)):
+        return len(stack)
+    agrees, differs = END_SAMPLES, len(stack)  # The start's own run agrees with itself.
+    while differs - agrees > 1:
+        middle = (agrees + differs) // 2
+        agrees, differs = (middle, differs) if same(middle) else (agrees, middle)
+    return agrees
+
+
+def _pick_ends(
+    start: FloatImage,
+    end: FloatImage,
+    disagree: np.ndarray,
+    stack: np.ndarray,
+    background: FloatImage,
+) -> np.ndarray:
+    """Fill ``background`` where the ends disagree, region by region, with the end that
+    continues the region's surroundings (or the median of all samples, for a region too
+    small to judge); returns where the background is the start's (or both ends')."""
+    shows_start = np.ones(start.shape, bool)
+    regions, labels, stats, _ = cv2.connectedComponentsWithStats(
+        disagree.astype(np.uint8), connectivity=8
+    )
+    if regions == 1:
+        return shows_start
+    edges_start, edges_end = _edges(start), _edges(end)
+    overall: FloatImage | None = None
+    ring = np.ones((3, 3), np.uint8)
+    height, width = start.shape
+    for region in range(1, regions):
+        x, y, w, h, area = (int(v) for v in stats[region])
+        rows = slice(max(y - 1, 0), min(y + h + 1, height))
+        box = (rows, slice(max(x - 1, 0), min(x + w + 1, width)))
+        inside = labels[box] == region
+        if area < LEAST_REGION:
+            if overall is None:
+                overall = np.median(stack, axis=0)
+            background[box][inside] = overall[box][inside]
+            continue
+        shape = inside.astype(np.uint8)
+        border = cv2.dilate(shape, ring) != cv2.erode(shape, ring)
+        take_end = edges_end[box][border].mean() < edges_start[box][border].mean()
+        chosen = end if take_end else start
+        background[box][inside] = chosen[box][inside]
+        shows_start[box][inside] = not take_end
+    return shows_start
+
+
+def _edges(image: FloatImage) -> FloatImage:
+    """How sharply the grey level steps at each pixel (Sobel, |dx| + |dy|)."""
+    dx = cv2.Sobel(image, cv2.CV_32F, 1, 0, ksize=3)
+    dy = cv2.Sobel(image, cv2.CV_32F, 0, 1, ksize=3)
+    return np.abs(dx) + np.abs(dy)

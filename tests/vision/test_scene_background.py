@@ -1,0 +1,119 @@
+"""The empty scene of a clip, estimated from frames sampled ahead (offline mode)."""
+
+from __future__ import annotations
+
+from dataclasses import replace
+
+import numpy as np
+import pytest
+
+from app.sources.synthetic import MovingObject, Scene
+from app.vision.pipeline import Pipeline
+from app.vision.scene_background import (
+    LEAST_SAMPLES,
+    EvenSample,
+    SceneBackground,
+    estimate_scene_background,
+)
+
+CLOSE = 6.0
+"""Grey levels: an estimate this near the empty scene is right (the camera noise is 2)."""
+
+
+def samples_of(scene: Scene, size: int = 32) -> list[np.ndarray]:
+    """The scene's frames as detection sees them, sampled as the background scan does."""
+    pipeline = Pipeline(fps=scene.fps)
+    sample: EvenSample[np.ndarray] = EvenSample(size)
+    for frame in scene.frames_iter():
+        sample.offer(lambda frame=frame: pipeline.prepare(frame))
+    return sample.items
+
+
+def empty_scene(scene: Scene, frame: int = 0) -> np.ndarray:
+    """The scene without its objects or noise, as detection sees it."""
+    picture = replace(scene, objects=(), noise_sigma=0.0).frame(frame)
+    return Pipeline(fps=scene.fps).prepare(picture).astype(np.float32)
+
+
+def share_right(estimate: SceneBackground, truth: np.ndarray) -> float:
+    return float(np.mean(np.abs(estimate.background - truth) <= CLOSE))
+
+
+def estimated(scene: Scene) -> SceneBackground:
+    estimate = estimate_scene_background(samples_of(scene))
+    assert estimate is not None
+    return estimate
+
+
+def test_even_sample_keeps_evenly_spaced_items_and_builds_few():
+    built = []
+    sample: EvenSample[int] = EvenSample(8)
+    for number in range(1000):
+        sample.offer(lambda number=number: built.append(number) or number)
+    items = sample.items
+    assert items[0] == 0
+    assert 8 <= len(items) < 16
+    assert set(np.diff(items)) == {sample.stride}
+    assert items[-1] > 1000 - 2 * sample.stride  # It reaches the end of the stream.
+    assert len(built) < 100  # Most items are never built.
+
+
+def test_too_few_samples_give_no_estimate():
+    frames = [np.full((24, 32), 100, np.uint8)] * (LEAST_SAMPLES - 1)
+    assert estimate_scene_background(frames) is None
+
+
+def test_a_slow_car_in_view_throughout_is_not_taken_for_the_scene():
+    # In view from frame 0 to the last, it covers the middle of its path for more than
+    # half the clip: a median over all samples takes the car for the scene there.
+    scene = Scene(
+        "slow-car",
+        frames=120,
+        objects=(MovingObject((40, 120), (15.0, 0.0), (70, 35), 30, textured=False),),
+    )
+    truth = empty_scene(scene)
+    samples = samples_of(scene)
+    plain_median = np.median(np.stack(samples), axis=0)
+    assert np.count_nonzero(np.abs(plain_median - truth) > 20) > 500
+    estimate = estimate_scene_background(samples)
+    assert estimate is not None and not estimate.view_changed
+    assert share_right(estimate, truth) >= 0.995
+
+
+@pytest.mark.parametrize(
+    "car",
+    [
+        # Parked at frame 0, drives off after 3 s: the scene there is the end's.
+        MovingObject((100, 100), (40.0, 0.0), (60, 30), 60, textured=False, stop=(0.0, 3.0)),
+        # Drives in and parks after 4 s: the scene there is the start's.
+        MovingObject((-60, 100), (40.0, 0.0), (60, 30), 60, textured=False, stop=(4.0, 99.0)),
+    ],
+    ids=["leaves", "arrives"],
+)
+def test_a_car_at_one_end_only_is_left_out_by_its_outline(car):
+    scene = Scene("parking", frames=135, objects=(car,))
+    estimate = estimated(scene)
+    assert share_right(estimate, empty_scene(scene)) >= 0.995
+
+
+@pytest.mark.parametrize(
+    "change",
+    [{"light_switch_frame": 45}, {"camera_move_frame": 45, "camera_move": (5.5, 2.5)}],
+    ids=["light-switch", "knocked-camera"],
+)
+def test_a_change_of_the_whole_view_leaves_the_scene_before_it(change):
+    walker = MovingObject((-20, 100), (45.0, 0.0), (28, 44), 200, first_frame=5)
+    scene = Scene("changed", frames=90, objects=(walker,), **change)
+    estimate = estimated(scene)
+    assert estimate.view_changed
+    assert share_right(estimate, empty_scene(scene)) >= 0.99
+
+
+def test_swaying_leaves_show_as_variability_where_they_are():
+    x, y, w, h = region = (200, 20, 100, 120)
+    scene = Scene("sway", frames=120, sway_region=region)
+    variability = estimated(scene).variability
+    inside = np.zeros(variability.shape, bool)
+    inside[y : y + h, x : x + w] = True
+    assert np.median(variability[inside]) > 3 * np.median(variability[~inside])
+    assert np.median(variability[~inside]) < 2.0  # The camera noise alone, elsewhere.

@@ -30,7 +30,7 @@ from app.vision.calibration import GroundPlane
 from app.vision.detections import Detection
 from app.vision.pipeline import FrameResult, Pipeline, PipelineConfig
 from app.vision.preprocess import to_size
-from app.vision.scene_background import EvenSample, SceneBackground
+from app.vision.scene_background import EvenSample, SceneBackground, estimate_scene_background
 from app.vision.types import GrayImage, Image
 
 Progress = Callable[[int, int | None], None]
@@ -179,8 +179,9 @@ def scan_background(pipeline: Pipeline, frames: Iterable[Image], fps: float) -> 
     for frame in itertools.islice(frames, limit):
         sample.offer(functools.partial(pipeline.prepare, frame))
         scanned += 1
-    scene = pipeline.seed_background(sample.items)
-    return BackgroundScan(scanned, len(sample.items), scene, time.perf_counter() - started)
+    scene = estimate_scene_background(sample.items)
+    used = scene if scene is not None and pipeline.start_from(scene) else None
+    return BackgroundScan(scanned, len(sample.items), used, time.perf_counter() - started)
 
 
 class _Analysis:

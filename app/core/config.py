@@ -61,6 +61,9 @@ class Settings(BaseSettings):
     status_interval_s: float = Field(default=1.0, gt=0)
     """How often each camera reports its state, frame rate and motion on /ws."""
     default_min_area: float = 100.0
+    scene_glance_s: float = Field(default=1.0, gt=0)
+    """How often an idle camera keeps a grey frame: at Activate, the median of the last
+    ones is the scene, so what is in view then and moving leaves no ghost."""
 
     retention_days: float = Field(default=30.0, ge=0)
     """Snapshots and finished events older than this are deleted (0 = keep forever)."""

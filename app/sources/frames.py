@@ -3,11 +3,11 @@
 Most cameras send JPEG (HTTP MJPEG, RTSP with RTP/JPEG, MJPG files). Decoding
 a 640x480 JPEG to colour costs about as much as the whole detection, and most
 of the time nobody looks: a camera that is neither watched nor activated
-decodes nothing; detection decodes a grey picture at a half, quarter or eighth
-of the size straight from the JPEG's DCT coefficients (libjpeg's scaled
-decoding, several times cheaper); only a viewer or a snapshot decodes full
-colour, once per frame. A frame that arrives already decoded (demo scene,
-H.264 stream, a device) offers the same interface.
+decodes a grey frame a second (its glances at the scene); detection decodes a
+grey picture at a half, quarter or eighth of the size straight from the JPEG's
+DCT coefficients (libjpeg's scaled decoding, several times cheaper); only a
+viewer or a snapshot decodes full colour, once per frame. A frame that arrives
+already decoded (demo scene, H.264 stream, a device) offers the same interface.
 """
 
 from __future__ import annotations

@@ -9,7 +9,7 @@ from __future__ import annotations
 
 import time
 from collections import defaultdict, deque
-from collections.abc import Callable, Sequence
+from collections.abc import Callable
 from dataclasses import dataclass, field, replace
 from typing import ParamSpec, Protocol, TypeVar
 
@@ -22,7 +22,7 @@ from app.vision.histogram import GreyStats, grey_stats
 from app.vision.morphology import Morphology
 from app.vision.motion import DEFAULT_METHOD, MotionResult, create_method
 from app.vision.preprocess import Denoise, DenoiseMethod, Downscale, Enhance, EnhanceMethod, to_gray
-from app.vision.scene_background import SceneBackground, estimate_scene_background
+from app.vision.scene_background import SceneBackground
 from app.vision.tracker import Tracker, TrackerConfig
 from app.vision.types import GrayImage, Image, Mask
 from app.vision.zones import IgnoreZones, Polygon
@@ -164,13 +164,10 @@ class Pipeline:
         """``frame`` as segmentation sees it: grey, downscaled, denoised and enhanced."""
         return self._prepare(to_gray(frame), _untimed)
 
-    def seed_background(self, samples: Sequence[GrayImage]) -> SceneBackground | None:
-        """Estimate the empty scene from ``samples`` (frames as ``prepare`` gives them,
-        taken evenly and in order from the video ahead) and have the method start from
-        it; the estimate, or None where there are too few samples or the method cannot
-        use one."""
-        scene = estimate_scene_background(samples)
-        return scene if scene is not None and self.method.seed(scene) else None
+    def start_from(self, scene: SceneBackground) -> bool:
+        """Have the method start from ``scene`` (estimated from frames as ``prepare``
+        gives them) rather than from the first frame; whether it will."""
+        return self.method.seed(scene)
 
     def _prepare(self, gray: GrayImage, clock: Clock) -> GrayImage:
         small = clock("downscale", self.downscale, gray)

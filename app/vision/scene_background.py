@@ -1,4 +1,4 @@
-"""The empty scene of a recorded clip, estimated before detection starts (offline mode).
+"""The empty scene, estimated from frames sampled ahead (offline) or just before (live).
 
 A live camera must learn its scene from the first frame it sees: whatever
 stands in view then becomes background, leaves a ghost where it stood when it
@@ -26,6 +26,11 @@ Each pixel's variability (its mean deviation from the background while it
 shows it) comes from the end samples that show the background there (a robust
 median deviation, so a sample with an object passing does not count): leaves
 that sway are known from the first frame on.
+
+A live camera cannot look ahead, but it can look back: while idle it keeps a
+grey frame now and then, and at Activate the median of the last few is the
+scene (``estimate_recent_scene``): what walked through them is not in it, what
+stands still is, and nobody in view when Activate is pressed leaves a ghost.
 """
 
 from __future__ import annotations
@@ -142,6 +147,30 @@ def estimate_scene_background(samples: Sequence[GrayImage]) -> SceneBackground |
         np.ascontiguousarray(variability, np.float32),
         len(samples),
         view_changed,
+    )
+
+
+def estimate_recent_scene(samples: Sequence[GrayImage]) -> SceneBackground | None:
+    """The scene as grey frames sampled over the last moments show it (a live camera's,
+    at Activate, which cannot look ahead): their median, so what moved through them is
+    not in it and what stood still is (a parked car is scene, not motion), and each
+    pixel's median deviation from it as its variability. None with fewer than
+    ``END_SAMPLES`` samples, or where the newest differs from the median over more than
+    ``VIEW_CHANGED_SHARE`` of the picture (the view changed among them, or something big
+    stands in it now: the model then learns the first frame, as without samples)."""
+    if len(samples) < END_SAMPLES:
+        return None
+    stack = np.stack(samples).astype(np.float32)
+    background = np.median(stack, axis=0)
+    deviation = np.median(np.abs(stack - background), axis=0)
+    agreement = max(LEAST_AGREEMENT, 3.0 * float(np.median(deviation)) / HALF_NORMAL_MEDIAN)
+    if np.mean(np.abs(stack[-1] - background) > agreement) > VIEW_CHANGED_SHARE:
+        return None
+    return SceneBackground(
+        np.ascontiguousarray(background, np.float32),
+        np.ascontiguousarray(MEAN_ABS_PER_MEDIAN_ABS * deviation, np.float32),
+        len(samples),
+        False,
     )
 
 

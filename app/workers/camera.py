@@ -32,6 +32,8 @@ from app.storage.files import SnapshotStore
 from app.vision.annotate import difference_picture
 from app.vision.detections import Detection
 from app.vision.pipeline import FrameResult, Pipeline, PipelineConfig
+from app.vision.scene_background import estimate_recent_scene
+from app.vision.types import GrayImage
 from app.vision.zones import as_polygons
 from app.workers.bus import Publisher
 from app.workers.hub import ANNOTATOR, EncodeCounter, FrameHub, LiveFrame, encode_jpeg
@@ -47,6 +49,10 @@ to wake from than an Event's wait (measured here); a stop is then seen when it e
 late at most), before another frame."""
 
 SETTING_FIELDS = ("sensitivity", "min_area", "method", "show_mask", "mask")
+
+GLANCES = 9
+"""Grey frames an idle camera keeps (one every ``scene_glance_s``) for the scene at
+Activate: enough that someone who stood still for a few of them is not the scene."""
 
 
 class CameraWorker:
@@ -94,6 +100,8 @@ class CameraWorker:
         self._source: FrameSource | None = None
         self._was_live = False
         self._failures = 0
+        self._glances: deque[GrayImage] = deque(maxlen=GLANCES)
+        self._next_glance = 0.0
 
     # Control, from any thread -------------------------------------------------------------
 
@@ -221,6 +229,7 @@ class CameraWorker:
         self._stop.wait(wait_s)
 
     def _stream(self, source: FrameSource) -> None:
+        self._glances.clear()  # A source opened anew may show another view.
         self.source_fps = round(source.fps, 3)
         period = 1.0 / source.fps if source.paced and source.fps > 0 else 0.0
         due = time.monotonic()
@@ -288,6 +297,9 @@ class CameraWorker:
                 self._alarm(alarms.current, live, result, now)
             if update.ended is not None:
                 self._motion_end(update.ended, now)
+        elif now_mono >= self._next_glance:
+            self._glances.append(frame.gray(PipelineConfig.detect_width))
+            self._next_glance = now_mono + self.settings.scene_glance_s
         self.hub.publish(live)
         if now_mono - self._last_status >= self.settings.status_interval_s:
             self._publish_status()
@@ -301,6 +313,7 @@ class CameraWorker:
             self._config = {**old, **pending}
         if want_active and self._pipeline is None:
             self._pipeline = self._new_pipeline(fps)
+            self._start_from_glances(self._pipeline)
             self._alarms = AlarmLogic(self.settings.quiet_s, self.settings.alarm_gap_s)
             self._activated_at = time.monotonic()
         elif not want_active and self._pipeline is not None:
@@ -331,6 +344,14 @@ class CameraWorker:
             grey_stats=False,
         )
         return Pipeline(config, fps)
+
+    def _start_from_glances(self, pipeline: Pipeline) -> None:
+        """The scene as the last glances show it, for detection to start from: someone
+        walking when Activate is pressed is motion, not background that leaves a ghost."""
+        glances, self._glances = self._glances, deque(maxlen=GLANCES)
+        scene = estimate_recent_scene([pipeline.prepare(glance) for glance in glances])
+        if scene is not None:
+            pipeline.start_from(scene)
 
     def _deactivate(self, now: float) -> None:
         alarms = self._alarms

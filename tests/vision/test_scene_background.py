@@ -13,6 +13,7 @@ from app.vision.scene_background import (
     LEAST_SAMPLES,
     EvenSample,
     SceneBackground,
+    estimate_recent_scene,
     estimate_scene_background,
 )
 
@@ -117,3 +118,27 @@ def test_swaying_leaves_show_as_variability_where_they_are():
     inside[y : y + h, x : x + w] = True
     assert np.median(variability[inside]) > 3 * np.median(variability[~inside])
     assert np.median(variability[~inside]) < 2.0  # The camera noise alone, elsewhere.
+
+
+def glances_of(scene: Scene, frames: range) -> list[np.ndarray]:
+    pipeline = Pipeline(fps=scene.fps)
+    return [pipeline.prepare(scene.frame(index)) for index in frames]
+
+
+def test_a_live_camera_s_recent_scene_leaves_out_who_walked_through():
+    walker = MovingObject((-20, 100), (60.0, 0.0), (40, 40), 200)
+    standing = MovingObject((220, 40), (0.0, 0.0), (30, 50), 40)  # First: textures go by place.
+    scene = Scene("yard", fps=25.0, frames=200, objects=(standing, walker))
+    recent = estimate_recent_scene(glances_of(scene, range(0, 81, 10)))
+    assert recent is not None
+    # The walker is not in the scene; who stood still all along is (no motion, no alarm).
+    stood = replace(scene, objects=(standing,), noise_sigma=0.0).frame(0)
+    truth = Pipeline(fps=scene.fps).prepare(stood).astype(np.float32)
+    assert share_right(recent, truth) >= 0.995
+
+
+def test_a_live_camera_s_recent_scene_needs_enough_glances_of_one_view():
+    scene = Scene("lit", frames=100, light_switch_frame=40)
+    assert estimate_recent_scene(glances_of(scene, range(0, 40, 10))) is None  # Four.
+    assert estimate_recent_scene(glances_of(scene, range(0, 41, 5))) is None  # Lit at the end.
+    assert estimate_recent_scene(glances_of(scene, range(0, 40, 5))) is not None

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import asyncio
+import time
 from pathlib import Path
 from typing import Any
 
@@ -11,7 +12,7 @@ from app.storage import Database
 from app.workers.camera import PLAIN_SLEEP_S, CameraWorker
 from tests.api.vigil_livekit import FPS, MjpegCamera, wait_for, write_video
 from tests.conftest import write_scene_video
-from tests.workers.conftest import make_worker
+from tests.workers.conftest import make_worker, worker_parts
 
 
 def _messages_until_motion_end(parts: dict[str, Any], worker: CameraWorker) -> list[dict[str, Any]]:
@@ -174,3 +175,48 @@ def test_a_stop_between_frames_handles_no_further_frame(
         worker.request_stop()
         assert worker.join(5)
     assert worker.frames == stopped_at
+
+
+# Someone walks across the whole view, in view the moment Activate is pressed.
+WALKING_ACROSS = Scene(
+    name="walking-across",
+    fps=25.0,
+    frames=250,
+    objects=(MovingObject((-20, 100), (60.0, 0.0), (40, 40), 200),),
+)
+
+
+def _detections_after_activate(tmp_path: Path, glance_s: float) -> dict[int, int]:
+    """Run the camera idle for 2.2 s, activate it, and count the objects on each of its
+    frames for the next 2 s (frame number -> detections)."""
+    parts = worker_parts(tmp_path, scene_glance_s=glance_s)
+    video = write_scene_video(WALKING_ACROSS, tmp_path / "walking.avi")
+    worker = make_worker(parts, str(video))
+    seen: dict[int, int] = {}
+    worker.start()
+    try:
+        wait_for(lambda: worker.frames >= 55, 10, "the camera to run idle")
+        worker.set_active(True)
+        wait_for(lambda: worker.processed > 0, 10, "detection to start")
+        until = time.monotonic() + 2.0
+        while time.monotonic() < until:
+            latest = worker.hub.latest
+            if latest is not None:
+                seen[latest.seq] = len(latest.detections)
+            time.sleep(0.005)
+    finally:
+        worker.request_stop()
+        worker.join(5)
+    return seen
+
+
+def test_someone_in_view_at_activate_is_motion_and_leaves_no_ghost(tmp_path: Path) -> None:
+    # Nine glances 0.2 s apart: the walker covers each pixel for a third of them.
+    seen = _detections_after_activate(tmp_path / "glances", glance_s=0.2)
+    assert len(seen) >= 30, "the frames after Activate were not seen"
+    assert max(seen.values()) == 1, seen  # The walker, and nothing where it stood.
+    assert sum(count == 1 for count in seen.values()) >= 0.9 * len(seen), seen
+    # Learning the frame at Activate instead (one glance is too few to tell the scene):
+    # where the walker stood, a ghost.
+    first_frame = _detections_after_activate(tmp_path / "no-glances", glance_s=1000.0)
+    assert max(first_frame.values()) >= 2, first_frame

@@ -30,7 +30,12 @@ from app.vision.calibration import GroundPlane
 from app.vision.detections import Detection
 from app.vision.pipeline import FrameResult, Pipeline, PipelineConfig
 from app.vision.preprocess import to_size
-from app.vision.scene_background import EvenSample, SceneBackground, estimate_scene_background
+from app.vision.scene_background import (
+    LEAST_SAMPLES,
+    EvenSample,
+    SceneBackground,
+    estimate_scene_background,
+)
 from app.vision.types import GrayImage, Image
 
 Progress = Callable[[int, int | None], None]
@@ -45,6 +50,9 @@ BACKGROUND_SCAN_FRAMES = 1500
 """The most frames the background scan reads, whatever the frame rate."""
 BACKGROUND_SAMPLES = 32
 """Frames the scan keeps, at least (``EvenSample``: fewer than twice as many)."""
+BACKGROUND_SCAN_BYTES = 128 * 2**20
+"""What the kept frames may take, at most, but never fewer than ``LEAST_SAMPLES`` (4K
+frames detected at full size: 10 to 19 of them)."""
 
 
 @dataclass(frozen=True)
@@ -174,14 +182,19 @@ def scan_background(pipeline: Pipeline, frames: Iterable[Image], fps: float) -> 
     ``pipeline`` start from the empty scene they show."""
     started = time.perf_counter()
     limit = min(BACKGROUND_SCAN_FRAMES, math.ceil(BACKGROUND_SCAN_S * fps))
-    sample: EvenSample[GrayImage] = EvenSample(BACKGROUND_SAMPLES)
-    scanned = 0
-    for frame in itertools.islice(frames, limit):
+    scanned = itertools.islice(frames, limit)
+    first = next(scanned, None)
+    if first is None:
+        return BackgroundScan(0, 0, None, time.perf_counter() - started)
+    prepared = pipeline.prepare(first)  # Its size tells how many samples fit.
+    fit = BACKGROUND_SCAN_BYTES // (2 * prepared.nbytes)
+    sample: EvenSample[GrayImage] = EvenSample(max(LEAST_SAMPLES, min(BACKGROUND_SAMPLES, fit)))
+    sample.offer(lambda: prepared)
+    for frame in scanned:
         sample.offer(functools.partial(pipeline.prepare, frame))
-        scanned += 1
     scene = estimate_scene_background(sample.items)
     used = scene if scene is not None and pipeline.start_from(scene) else None
-    return BackgroundScan(scanned, len(sample.items), used, time.perf_counter() - started)
+    return BackgroundScan(sample.offered, len(sample.items), used, time.perf_counter() - started)
 
 
 class _Analysis:

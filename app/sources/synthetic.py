@@ -80,7 +80,10 @@ class Scene:
     seed: int = 7
     min_visible_fraction: float = 0.5
     """A partly visible object counts as truth once this share of it is in view."""
-    _cache: dict[str, np.ndarray] = field(default_factory=dict, compare=False, repr=False)
+    _cache: dict[str, np.ndarray] = field(
+        default_factory=dict, init=False, compare=False, repr=False
+    )
+    """Rendered textures; a scene made from this one by `replace` renders its own."""
 
     def _background(self) -> np.ndarray:
         if "background" not in self._cache:

@@ -70,6 +70,9 @@ SHIFT_EXPLAINS = 0.25
 """A shift of the view explains a change where, with the start shifted by it, at most
 this share of the pixels that differed still differ (the objects that moved)."""
 
+LEAST_SHIFT_SIDE = 16
+"""Pixels: a picture narrower (or lower) than this is not searched for a shifted view."""
+
 LEAST_REGION = 16
 """Pixels: a region of disagreement smaller than this has no border to judge it by."""
 
@@ -100,16 +103,16 @@ class EvenSample(Generic[T]):
         self.size = size
         self.items: list[T] = []
         self.stride = 1
-        self._offered = 0
+        self.offered = 0
 
     def offer(self, make: Callable[[], T]) -> None:
         """The stream's next item; ``make`` builds it, called only where it is kept."""
-        if self._offered % self.stride == 0:
+        if self.offered % self.stride == 0:
             self.items.append(make())
             if len(self.items) == 2 * self.size:
                 self.items = self.items[::2]
                 self.stride *= 2
-        self._offered += 1
+        self.offered += 1
 
 
 def estimate_scene_background(samples: Sequence[GrayImage]) -> SceneBackground | None:
@@ -117,16 +120,17 @@ def estimate_scene_background(samples: Sequence[GrayImage]) -> SceneBackground |
     (all one size); None where there are fewer than ``LEAST_SAMPLES``."""
     if len(samples) < LEAST_SAMPLES:
         return None
-    stack = np.stack(samples).astype(np.float32)
-    start = np.median(stack[:END_SAMPLES], axis=0)
+    stack = np.stack(samples)  # 8-bit: a clip's samples at full size are large.
+    start = _median(stack[:END_SAMPLES])
     # The camera's noise, from how far the start's samples stray from their median (the
     # ends' medians differ by less than a sample does).
-    noise = float(np.median(np.abs(stack[:END_SAMPLES] - start))) / HALF_NORMAL_MEDIAN
+    strays = np.abs(stack[:END_SAMPLES].astype(np.float32) - start)
+    noise = float(np.median(strays)) / HALF_NORMAL_MEDIAN
     agreement = max(LEAST_AGREEMENT, 3.0 * noise)
     same_view = _same_view(stack, start, agreement)
     view_changed = same_view < len(stack)
     stack = stack[:same_view]
-    end = np.median(stack[-END_SAMPLES:], axis=0)
+    end = _median(stack[-END_SAMPLES:])
     disagree = np.abs(start - end) > agreement
     background = (start + end) / 2
     shows_start = _pick_ends(start, end, disagree, stack, background)
@@ -136,15 +140,14 @@ def estimate_scene_background(samples: Sequence[GrayImage]) -> SceneBackground |
         disagree,
         np.where(
             shows_start,
-            np.median(np.abs(stack[:END_SAMPLES] - background), axis=0),
-            np.median(np.abs(stack[-END_SAMPLES:] - background), axis=0),
+            _median_deviation(stack[:END_SAMPLES], background),
+            _median_deviation(stack[-END_SAMPLES:], background),
         ),
-        np.median(np.abs(ends - background), axis=0),
+        _median_deviation(ends, background),
     )
-    variability = MEAN_ABS_PER_MEDIAN_ABS * deviation
     return SceneBackground(
         np.ascontiguousarray(background, np.float32),
-        np.ascontiguousarray(variability, np.float32),
+        np.ascontiguousarray(MEAN_ABS_PER_MEDIAN_ABS * deviation, np.float32),
         len(samples),
         view_changed,
     )
@@ -160,9 +163,9 @@ def estimate_recent_scene(samples: Sequence[GrayImage]) -> SceneBackground | Non
     stands in it now: the model then learns the first frame, as without samples)."""
     if len(samples) < END_SAMPLES:
         return None
-    stack = np.stack(samples).astype(np.float32)
-    background = np.median(stack, axis=0)
-    deviation = np.median(np.abs(stack - background), axis=0)
+    stack = np.stack(samples)
+    background = _median(stack)
+    deviation = _median_deviation(stack, background)
     agreement = max(LEAST_AGREEMENT, 3.0 * float(np.median(deviation)) / HALF_NORMAL_MEDIAN)
     if np.mean(np.abs(stack[-1] - background) > agreement) > VIEW_CHANGED_SHARE:
         return None
@@ -180,19 +183,25 @@ def _same_view(stack: np.ndarray, start: FloatImage, agreement: float) -> int:
     at most ``VIEW_CHANGED_SHARE`` of the picture and is not the start's picture shifted
     (a light that switched, a camera that moved, stays so: the run is sought by halving)."""
 
-    taper = cv2.createHanningWindow((start.shape[1], start.shape[0]), cv2.CV_32F)
+    height, width = start.shape
+    taper = (
+        cv2.createHanningWindow((width, height), cv2.CV_32F)
+        if min(height, width) >= LEAST_SHIFT_SIDE
+        else None
+    )
 
     def same(stop: int) -> bool:
-        window = np.median(stack[stop - END_SAMPLES : stop], axis=0)
+        window = _median(stack[stop - END_SAMPLES : stop])
         if np.mean(np.abs(window - start) > agreement) > VIEW_CHANGED_SHARE:
             return False
+        if taper is None:
+            return True
         # A camera knocked a few pixels changes little more than the scene's edges: the
         # view shifted is sought, and taken where it explains the change.
         # Copies: OpenCV 5.0's phaseCorrelate applies the window to its inputs in place.
         (dx, dy), _ = cv2.phaseCorrelate(start.copy(), window.copy(), taper)
         if math.hypot(dx, dy) < CAMERA_MOVED_PX:
             return True
-        height, width = start.shape
         margin_x, margin_y = math.ceil(abs(dx)) + 1, math.ceil(abs(dy)) + 1
         if width <= 2 * margin_x or height <= 2 * margin_y:
             return True
@@ -239,7 +248,7 @@ def _pick_ends(
         inside = labels[box] == region
         if area < LEAST_REGION:
             if overall is None:
-                overall = np.median(stack, axis=0)
+                overall = _median(stack)
             background[box][inside] = overall[box][inside]
             continue
         shape = inside.astype(np.uint8)
@@ -249,6 +258,16 @@ def _pick_ends(
         background[box][inside] = chosen[box][inside]
         shows_start[box][inside] = not take_end
     return shows_start
+
+
+def _median(frames: np.ndarray) -> FloatImage:
+    """The per-pixel median of a stack of frames, float32."""
+    return np.median(frames, axis=0).astype(np.float32)
+
+
+def _median_deviation(frames: np.ndarray, center: FloatImage) -> FloatImage:
+    """The per-pixel median of |frame - center| over a stack of frames, float32."""
+    return _median(np.abs(frames.astype(np.float32) - center))
 
 
 def _edges(image: FloatImage) -> FloatImage:

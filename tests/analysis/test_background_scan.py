@@ -4,13 +4,16 @@ background that leaves a ghost behind."""
 from __future__ import annotations
 
 import json
+from dataclasses import replace
 
 import pytest
 
+from app.analysis import runner
 from app.analysis.runner import scan_background
 from app.sources.synthetic import Scene, in_view_scenes
 from app.vision.metrics import ObjectCounts
-from app.vision.pipeline import Pipeline
+from app.vision.pipeline import Pipeline, PipelineConfig
+from app.vision.scene_background import LEAST_SAMPLES
 from tests.analysis.walker import vigil
 from tests.conftest import write_scene_video
 
@@ -99,3 +102,14 @@ def test_vigil_analyze_scans_first_and_reports_it(tmp_path):
     assert plain["background_scan"] is None
     assert plain["settings"]["background_scan"] is False
     assert plain["evaluation"]["objects"]["false_alarm_rate"] >= 0.1
+
+
+def test_the_scan_keeps_what_fits_its_memory_of_large_frames(monkeypatch):
+    # Frames detected at full size: 640x480 here, as 4K would be against the real budget.
+    scene = replace(IN_VIEW["box-in-view"], size=(640, 480))
+    monkeypatch.setattr(runner, "BACKGROUND_SCAN_BYTES", 4 * 2**20)
+    pipeline = Pipeline(PipelineConfig(detect_width=0), fps=scene.fps)
+    scan = scan_background(pipeline, scene.frames_iter(), scene.fps)
+    assert scan.frames == scene.frames
+    assert LEAST_SAMPLES <= scan.samples < 2 * LEAST_SAMPLES  # 10 fit at least, 6 by size.
+    assert scan.scene is not None

@@ -142,3 +142,13 @@ def test_a_live_camera_s_recent_scene_needs_enough_glances_of_one_view():
     assert estimate_recent_scene(glances_of(scene, range(0, 40, 10))) is None  # Four.
     assert estimate_recent_scene(glances_of(scene, range(0, 41, 5))) is None  # Lit at the end.
     assert estimate_recent_scene(glances_of(scene, range(0, 40, 5))) is not None
+
+
+@pytest.mark.parametrize("shape", [(1, 1), (1, 40), (40, 1), (3, 50), (12, 12)])
+def test_tiny_pictures_are_estimated_without_failing(shape):
+    rng = np.random.default_rng(3)
+    frames = [rng.integers(90, 110, shape, dtype=np.uint8) for _ in range(40)]
+    for estimate in (estimate_scene_background(frames), estimate_recent_scene(frames[:9])):
+        assert estimate is not None and estimate.background.shape == shape
+        assert np.isfinite(estimate.background).all() and np.isfinite(estimate.variability).all()
+        assert estimate.background.min() >= 85 and estimate.background.max() <= 115

@@ -9,9 +9,10 @@ background is estimated from them:
 
 * **Both ends** — the median of the first few samples (the start) and of the
   last few (the end) each hide what moves through quickly. Where the two agree,
-  the pixel shows the scene at both ends, however long something covered it in
-  between (a slow car covers the middle of its path most of the time: a median
-  over all samples would take the car for the scene there).
+  the pixel shows the scene at both ends (the start's picture is taken), however
+  long something covered it in between (a slow car covers the middle of its
+  path most of the time: a median over all samples would take the car for the
+  scene there).
 * **Where they disagree** something stood at one end. Per region of
   disagreement, the end whose picture continues its surroundings is the scene:
   an object's outline is an edge across the region's border, the scene behind
@@ -19,13 +20,16 @@ background is estimated from them:
   to tell by its border takes the median of all samples.
 * **The view changed** (a light switched, the camera was moved, something
   came to fill it) where a later run of samples differs from the start over
-  much of the picture: only the samples before the change count, and the
-  model's own light-switch and knock handling take the change when it comes.
+  much of the picture: only the samples up to the change count (the search by
+  halving may keep a sample or two past it, which the medians outvote), and
+  the model's own light-switch and knock handling take the change when it
+  comes.
 
 Each pixel's variability (its mean deviation from the background while it
-shows it) comes from the end samples that show the background there (a robust
-median deviation, so a sample with an object passing does not count): leaves
-that sway are known from the first frame on.
+shows it) comes from the spread of the end samples that show the background
+there, each end about its own median (a robust median deviation, so a sample
+with an object passing does not count, nor does light that drifted between the
+ends): leaves that sway are known from the first frame on.
 
 A live camera cannot look ahead, but it can look back: while idle it keeps a
 grey frame now and then, and at Activate the median of the last few is the
@@ -132,18 +136,18 @@ def estimate_scene_background(samples: Sequence[GrayImage]) -> SceneBackground |
     stack = stack[:same_view]
     end = _median(stack[-END_SAMPLES:])
     disagree = np.abs(start - end) > agreement
-    background = (start + end) / 2
+    # Where the ends agree, the start's picture: what the first frame shows (the light
+    # may have drifted a little by the end).
+    background = start.copy()
     shows_start = _pick_ends(start, end, disagree, stack, background)
-    # Where the ends agree, both show the scene; elsewhere only the end chosen does.
-    ends = np.concatenate((stack[:END_SAMPLES], stack[-END_SAMPLES:]))
+    # Each end's spread about its own median (a drift between them is no sway); where
+    # the ends agree, both show the scene, elsewhere only the end chosen does.
+    spread_start = _median_deviation(stack[:END_SAMPLES], start)
+    spread_end = _median_deviation(stack[-END_SAMPLES:], end)
     deviation = np.where(
         disagree,
-        np.where(
-            shows_start,
-            _median_deviation(stack[:END_SAMPLES], background),
-            _median_deviation(stack[-END_SAMPLES:], background),
-        ),
-        _median_deviation(ends, background),
+        np.where(shows_start, spread_start, spread_end),
+        (spread_start + spread_end) / 2,
     )
     return SceneBackground(
         np.ascontiguousarray(background, np.float32),
@@ -230,7 +234,8 @@ def _pick_ends(
 ) -> np.ndarray:
     """Fill ``background`` where the ends disagree, region by region, with the end that
     continues the region's surroundings (or the median of all samples, for a region too
-    small to judge); returns where the background is the start's (or both ends')."""
+    small to judge); returns where the background is the start's (or both ends', or,
+    for such a small region, the start's spread stands for its variability)."""
     shows_start = np.ones(start.shape, bool)
     regions, labels, stats, _ = cv2.connectedComponentsWithStats(
         disagree.astype(np.uint8), connectivity=8

@@ -247,7 +247,8 @@ class AdaptiveBackground(MotionMethod):
 
     def _start_from(self, scene: SceneBackground) -> None:
         """Take ``scene`` as the model: its background as both modes, its variability as
-        the pixels' own, weighed as the ``END_SAMPLES`` frames it was measured over. The
+        the pixels' own, weighed as ``END_SAMPLES`` frames of learning (it was measured
+        over five or ten samples). The
         frames after go on learning as a scene's first frames do (the variability at the
         plain mean of its samples), so what is in view at the first frame is motion, and
         leaves that sway are known at once and better known soon."""

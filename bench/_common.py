@@ -84,9 +84,9 @@ def run_pipeline(
 ) -> Iterator[FrameResult]:
     """Results of a fresh pipeline over ``frames``, one per frame, in order; with
     ``background_scan``, the pipeline first scans them for the empty scene, as
-    ``vigil analyze`` does (a live camera cannot)."""
+    ``vigil analyze`` does for a method that can start from it (a live camera cannot)."""
     pipeline = make_pipeline(method, fps)
-    if background_scan:
+    if background_scan and pipeline.starts_from_scene:
         scan_background(pipeline, frames, fps)
     for frame in frames:
         yield pipeline.process(frame)

@@ -159,8 +159,7 @@ def analyze(
 
 @dataclass(frozen=True)
 class BackgroundScan:
-    """What the background scan read, and the scene it found (None: too few frames, or a
-    method that learns from the first frame whatever it is given)."""
+    """What the background scan read, and the scene it found (None: too few frames)."""
 
     frames: int
     samples: int
@@ -179,7 +178,7 @@ class BackgroundScan:
 
 def scan_background(pipeline: Pipeline, frames: Iterable[Image], fps: float) -> BackgroundScan:
     """Sample the first ``BACKGROUND_SCAN_S`` seconds of ``frames`` evenly and have
-    ``pipeline`` start from the empty scene they show."""
+    ``pipeline`` start from the empty scene they show (where its method can)."""
     started = time.perf_counter()
     limit = min(BACKGROUND_SCAN_FRAMES, math.ceil(BACKGROUND_SCAN_S * fps))
     scanned = itertools.islice(frames, limit)
@@ -193,8 +192,9 @@ def scan_background(pipeline: Pipeline, frames: Iterable[Image], fps: float) -> 
     for frame in scanned:
         sample.offer(functools.partial(pipeline.prepare, frame))
     scene = estimate_scene_background(sample.items)
-    used = scene if scene is not None and pipeline.start_from(scene) else None
-    return BackgroundScan(sample.offered, len(sample.items), used, time.perf_counter() - started)
+    if scene is not None:
+        pipeline.start_from(scene)
+    return BackgroundScan(sample.offered, len(sample.items), scene, time.perf_counter() - started)
 
 
 class _Analysis:
@@ -225,7 +225,8 @@ class _Analysis:
 
     def run(self) -> dict[str, Any]:
         started = time.perf_counter()
-        self.background = self._scan_background() if self.options.background_scan else None
+        if self.options.background_scan and self.pipeline.starts_from_scene:
+            self.background = self._scan_background()
         tracks_csv = TracksCsv(self.out / "tracks.csv")
         video = AnnotatedVideo(self.out / "annotated.avi", self.source.fps, self.source.size)
         frames = 0

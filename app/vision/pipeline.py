@@ -164,10 +164,16 @@ class Pipeline:
         """``frame`` as segmentation sees it: grey, downscaled, denoised and enhanced."""
         return self._prepare(to_gray(frame), _untimed)
 
-    def start_from(self, scene: SceneBackground) -> bool:
+    @property
+    def starts_from_scene(self) -> bool:
+        """Whether the method can start from a scene estimated ahead (``start_from``)."""
+        return self.method.starts_from_scene
+
+    def start_from(self, scene: SceneBackground) -> None:
         """Have the method start from ``scene`` (estimated from frames as ``prepare``
-        gives them) rather than from the first frame; whether it will."""
-        return self.method.seed(scene)
+        gives them) rather than from the first frame, where it ``starts_from_scene``."""
+        if self.starts_from_scene:
+            self.method.seed(scene)
 
     def _prepare(self, gray: GrayImage, clock: Clock) -> GrayImage:
         small = clock("downscale", self.downscale, gray)

@@ -349,6 +349,8 @@ class CameraWorker:
         """The scene as the last glances show it, for detection to start from: someone
         walking when Activate is pressed is motion, not background that leaves a ghost."""
         glances, self._glances = self._glances, deque(maxlen=GLANCES)
+        if not pipeline.starts_from_scene:
+            return
         scene = estimate_recent_scene([pipeline.prepare(glance) for glance in glances])
         if scene is not None:
             pipeline.start_from(scene)

@@ -64,12 +64,12 @@ def test_a_scan_of_too_few_frames_leaves_the_start_to_the_model():
     assert pipeline.process(frames[0]).detections == []  # Learned, as without a scan.
 
 
-def test_a_method_that_cannot_start_from_a_scene_ignores_it():
-    scene = IN_VIEW["two-ways-in-view"]
-    frames = list(scene.frames_iter())
-    pipeline = Pipeline(fps=scene.fps)
-    pipeline.set_method("mog2")
-    assert scan_background(pipeline, frames, scene.fps).scene is None
+def test_a_method_that_cannot_start_from_a_scene_is_not_scanned_for(tmp_path):
+    video = write_scene_video(IN_VIEW["two-ways-in-view"], tmp_path / "two-ways.avi")
+    run = vigil("analyze", video, "--out", tmp_path / "out", "--method", "knn", "--quiet")
+    assert run.returncode == 0, run.stderr
+    report = json.loads((tmp_path / "out" / "report.json").read_text())
+    assert report["background_scan"] is None
 
 
 def test_vigil_analyze_scans_first_and_reports_it(tmp_path):

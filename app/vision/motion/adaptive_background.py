@@ -155,6 +155,7 @@ NEAR_MOTION_DEVIATION_SHARE = 0.3
 
 class AdaptiveBackground(MotionMethod):
     name = "adaptive"
+    starts_from_scene = True
     description = (
         "two-mode selective running average with per-pixel variability, "
         "light-switch and ghost handling (default)"
@@ -241,9 +242,8 @@ class AdaptiveBackground(MotionMethod):
         self._frame_index += 1
         return self._step(gray, followed=False)
 
-    def seed(self, scene: SceneBackground) -> bool:
+    def seed(self, scene: SceneBackground) -> None:
         self._scene = scene
-        return True
 
     def _start_from(self, scene: SceneBackground) -> None:
         """Take ``scene`` as the model: its background as both modes, its variability as

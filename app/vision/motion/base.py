@@ -41,6 +41,9 @@ class MotionMethod(ABC):
 
     name: ClassVar[str]
     description: ClassVar[str]
+    starts_from_scene: ClassVar[bool] = False
+    """Whether ``seed`` takes a scene (the others learn from the first frame whatever
+    they are given)."""
 
     def __init__(self, sensitivity: float | None = None) -> None:
         self.noise = NoiseEstimator()
@@ -65,11 +68,11 @@ class MotionMethod(ABC):
         """The grey-level threshold in force for the next frame."""
         return self._sensitivity if self._sensitivity is not None else self.noise.threshold
 
-    def seed(self, scene: SceneBackground) -> bool:
-        """Start from ``scene`` (estimated ahead, offline) rather than from the first frame,
-        if the method can; whether it will. The first frame given to ``apply`` after this
-        is compared with the scene; ``reset`` forgets it."""
-        return False
+    def seed(self, scene: SceneBackground) -> None:
+        """Start from ``scene`` (estimated ahead or just before) rather than from the first
+        frame, where the method ``starts_from_scene``: the first frame given to ``apply``
+        after this is compared with the scene; ``reset`` forgets it."""
+        raise NotImplementedError(f"{self.name} learns its scene from the first frame")
 
     @abstractmethod
     def apply(self, gray: GrayImage) -> MotionResult:

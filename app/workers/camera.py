@@ -32,6 +32,7 @@ from app.storage.files import SnapshotStore
 from app.vision.annotate import difference_picture
 from app.vision.detections import Detection
 from app.vision.pipeline import FrameResult, Pipeline, PipelineConfig
+from app.vision.preprocess import Downscale
 from app.vision.scene_background import estimate_recent_scene
 from app.vision.types import GrayImage
 from app.vision.zones import as_polygons
@@ -53,6 +54,7 @@ SETTING_FIELDS = ("sensitivity", "min_area", "method", "show_mask", "mask")
 GLANCES = 9
 """Grey frames an idle camera keeps (one every ``scene_glance_s``) for the scene at
 Activate: enough that someone who stood still for a few of them is not the scene."""
+GLANCE_SIZE = Downscale(PipelineConfig.detect_width)
 
 
 class CameraWorker:
@@ -298,7 +300,8 @@ class CameraWorker:
             if update.ended is not None:
                 self._motion_end(update.ended, now)
         elif now_mono >= self._next_glance:
-            self._glances.append(frame.gray(PipelineConfig.detect_width))
+            # At detection size: a decoded 4K frame, kept nine times, would hold 75 MB.
+            self._glances.append(GLANCE_SIZE(frame.gray(PipelineConfig.detect_width)))
             self._next_glance = now_mono + self.settings.scene_glance_s
         self.hub.publish(live)
         if now_mono - self._last_status >= self.settings.status_interval_s:

@@ -178,7 +178,7 @@ class BackgroundScan:
 
 def scan_background(pipeline: Pipeline, frames: Iterable[Image], fps: float) -> BackgroundScan:
     """Sample the first ``BACKGROUND_SCAN_S`` seconds of ``frames`` evenly and have
-    ``pipeline`` start from the empty scene they show (where its method can)."""
+    ``pipeline`` (one that ``starts_from_scene``) start from the empty scene they show."""
     started = time.perf_counter()
     limit = min(BACKGROUND_SCAN_FRAMES, math.ceil(BACKGROUND_SCAN_S * fps))
     scanned = itertools.islice(frames, limit)

@@ -170,10 +170,9 @@ class Pipeline:
         return self.method.starts_from_scene
 
     def start_from(self, scene: SceneBackground) -> None:
-        """Have the method start from ``scene`` (estimated from frames as ``prepare``
-        gives them) rather than from the first frame, where it ``starts_from_scene``."""
-        if self.starts_from_scene:
-            self.method.seed(scene)
+        """Have the method, one that ``starts_from_scene``, start from ``scene`` (estimated
+        from frames as ``prepare`` gives them) rather than from the first frame."""
+        self.method.seed(scene)
 
     def _prepare(self, gray: GrayImage, clock: Clock) -> GrayImage:
         small = clock("downscale", self.downscale, gray)

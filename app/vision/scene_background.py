@@ -49,6 +49,7 @@ import numpy as np
 
 from app.vision.noise import HALF_NORMAL_MEDIAN
 from app.vision.types import FloatImage, GrayImage
+from app.vision.view_shift import shift_explains
 
 END_SAMPLES = 5
 """Samples at each end of the sampled stretch whose median shows that end."""
@@ -70,10 +71,6 @@ itself changed."""
 CAMERA_MOVED_PX = 1.5
 """Pixels: samples whose picture is the start's shifted this far show a camera that moved."""
 
-SHIFT_EXPLAINS = 0.25
-"""A shift of the view explains a change where, with the start shifted by it, at most
-this share of the pixels that differed still differ (the objects that moved)."""
-
 LEAST_SHIFT_SIDE = 16
 """Pixels: a picture narrower (or lower) than this is not searched for a shifted view."""
 
@@ -91,7 +88,6 @@ class SceneBackground:
     """Grey levels, float32."""
     variability: FloatImage
     """Each pixel's mean |frame - background| while it shows the background, float32."""
-    samples: int
     view_changed: bool
     """The view changed within the samples: the background is from those before."""
 
@@ -129,17 +125,13 @@ def estimate_scene_background(samples: Sequence[GrayImage]) -> SceneBackground |
     # The camera's noise, from how far the start's samples stray from their median (the
     # ends' medians differ by less than a sample does).
     strays = np.abs(stack[:END_SAMPLES].astype(np.float32) - start)
-    noise = float(np.median(strays)) / HALF_NORMAL_MEDIAN
-    agreement = max(LEAST_AGREEMENT, 3.0 * noise)
+    agreement = _agreement(float(np.median(strays)))
     same_view = _same_view(stack, start, agreement)
     view_changed = same_view < len(stack)
     stack = stack[:same_view]
     end = _median(stack[-END_SAMPLES:])
     disagree = np.abs(start - end) > agreement
-    # Where the ends agree, the start's picture: what the first frame shows (the light
-    # may have drifted a little by the end).
-    background = start.copy()
-    shows_start = _pick_ends(start, end, disagree, stack, background)
+    background, shows_start = _pick_ends(start, end, disagree, stack)
     # Each end's spread about its own median (a drift between them is no sway); where
     # the ends agree, both show the scene, elsewhere only the end chosen does.
     spread_start = _median_deviation(stack[:END_SAMPLES], start)
@@ -152,7 +144,6 @@ def estimate_scene_background(samples: Sequence[GrayImage]) -> SceneBackground |
     return SceneBackground(
         np.ascontiguousarray(background, np.float32),
         np.ascontiguousarray(MEAN_ABS_PER_MEDIAN_ABS * deviation, np.float32),
-        len(samples),
         view_changed,
     )
 
@@ -170,13 +161,12 @@ def estimate_recent_scene(samples: Sequence[GrayImage]) -> SceneBackground | Non
     stack = np.stack(samples)
     background = _median(stack)
     deviation = _median_deviation(stack, background)
-    agreement = max(LEAST_AGREEMENT, 3.0 * float(np.median(deviation)) / HALF_NORMAL_MEDIAN)
+    agreement = _agreement(float(np.median(deviation)))
     if np.mean(np.abs(stack[-1] - background) > agreement) > VIEW_CHANGED_SHARE:
         return None
     return SceneBackground(
         np.ascontiguousarray(background, np.float32),
         np.ascontiguousarray(MEAN_ABS_PER_MEDIAN_ABS * deviation, np.float32),
-        len(samples),
         False,
     )
 
@@ -204,17 +194,8 @@ def _same_view(stack: np.ndarray, start: FloatImage, agreement: float) -> int:
         # view shifted is sought, and taken where it explains the change.
         # Copies: OpenCV 5.0's phaseCorrelate applies the window to its inputs in place.
         (dx, dy), _ = cv2.phaseCorrelate(start.copy(), window.copy(), taper)
-        if math.hypot(dx, dy) < CAMERA_MOVED_PX:
-            return True
-        margin_x, margin_y = math.ceil(abs(dx)) + 1, math.ceil(abs(dy)) + 1
-        if width <= 2 * margin_x or height <= 2 * margin_y:
-            return True
-        inside = (slice(margin_y, height - margin_y), slice(margin_x, width - margin_x))
-        move = np.array([[1.0, 0.0, dx], [0.0, 1.0, dy]])
-        shifted = cv2.warpAffine(start, move, (width, height))
-        before = np.count_nonzero(np.abs(window - start)[inside] > agreement)
-        after = np.count_nonzero(np.abs(window - shifted)[inside] > agreement)
-        return not (before and after <= SHIFT_EXPLAINS * before)
+        moved = math.hypot(dx, dy) >= CAMERA_MOVED_PX
+        return not (moved and shift_explains(start, window, dx, dy, agreement))
 
     if same(len(stack)):
         return len(stack)
@@ -226,22 +207,20 @@ def _same_view(stack: np.ndarray, start: FloatImage, agreement: float) -> int:
 
 
 def _pick_ends(
-    start: FloatImage,
-    end: FloatImage,
-    disagree: np.ndarray,
-    stack: np.ndarray,
-    background: FloatImage,
-) -> np.ndarray:
-    """Fill ``background`` where the ends disagree, region by region, with the end that
-    continues the region's surroundings (or the median of all samples, for a region too
-    small to judge); returns where the background is the start's (or both ends', or,
-    for such a small region, the start's spread stands for its variability)."""
+    start: FloatImage, end: FloatImage, disagree: np.ndarray, stack: np.ndarray
+) -> tuple[FloatImage, np.ndarray]:
+    """The background, and where it is the start's picture. Where the ends agree it is
+    the start's: what the first frame shows (the light may have drifted a little by the
+    end). Where they disagree, region by region, the end that continues the region's
+    surroundings (or the median of all samples, for a region too small to judge, where
+    the start's spread stands for its variability)."""
+    background = start.copy()
     shows_start = np.ones(start.shape, bool)
     regions, labels, stats, _ = cv2.connectedComponentsWithStats(
         disagree.astype(np.uint8), connectivity=8
     )
     if regions == 1:
-        return shows_start
+        return background, shows_start
     edges_start, edges_end = _edges(start), _edges(end)
     overall: FloatImage | None = None
     ring = np.ones((3, 3), np.uint8)
@@ -262,7 +241,14 @@ def _pick_ends(
         chosen = end if take_end else start
         background[box][inside] = chosen[box][inside]
         shows_start[box][inside] = not take_end
-    return shows_start
+    return background, shows_start
+
+
+def _agreement(median_stray: float) -> float:
+    """Grey levels within which two medians show the same scene, from the median of
+    samples' distances to their median (``LEAST_AGREEMENT``, or three standard deviations
+    of the noise that median shows, where that is more)."""
+    return max(LEAST_AGREEMENT, 3.0 * median_stray / HALF_NORMAL_MEDIAN)
 
 
 def _median(frames: np.ndarray) -> FloatImage:

@@ -87,6 +87,7 @@ from app.vision.motion.adaptive_kernels import GUARD_REACH, LEARNING_REACH
 from app.vision.motion.base import MotionMethod, MotionResult
 from app.vision.scene_background import END_SAMPLES, SceneBackground
 from app.vision.types import FloatImage, GrayImage, Mask
+from app.vision.view_shift import shift_explains, shifted
 
 MEAN_ABS_NOISE = math.sqrt(2.0 / math.pi)
 """E|X| / sigma for Gaussian X: the mean deviation that camera noise alone gives."""
@@ -127,10 +128,6 @@ matching's cost grows with the frame's area); the shift is checked at full size.
 
 CAMERA_MOVE_LEAST = 0.5
 """Pixels: the least shift of the view taken for a camera that moved."""
-
-CAMERA_MOVE_LEFT = 0.25
-"""A shift explains a change when, with the background moved by it, at most this share
-of the pixels that differed still differ (the objects in view)."""
 
 CROWDED_SHARE = 0.4
 """The share of the frame moving past which the noise is measured on still pixels only."""
@@ -248,10 +245,10 @@ class AdaptiveBackground(MotionMethod):
     def _start_from(self, scene: SceneBackground) -> None:
         """Take ``scene`` as the model: its background as both modes, its variability as
         the pixels' own, weighed as ``END_SAMPLES`` frames of learning (it was measured
-        over five or ten samples). The
-        frames after go on learning as a scene's first frames do (the variability at the
-        plain mean of its samples), so what is in view at the first frame is motion, and
-        leaves that sway are known at once and better known soon."""
+        over five or ten samples). The frames after go on learning as a scene's first
+        frames do (the variability at the plain mean of its samples), so what is in view
+        at the first frame is motion, and leaves that sway are known at once and better
+        known soon."""
         rounded = np.clip(np.rint(scene.background), 0, 255).astype(np.uint8)
         self._learn(rounded)
         assert self._model is not None
@@ -462,9 +459,9 @@ class AdaptiveBackground(MotionMethod):
         """How far (x, y pixels) the scene moved in the picture, where the camera was
         knocked (the other way): the shift, up to ``CAMERA_MOVE_REACH``, by which the
         background best matches the frame, provided that the background moved that far
-        matches it at all but a small share (``CAMERA_MOVE_LEFT``) of the pixels that
-        differ from it as it is. None where no shift does: something big stepped into
-        view. A wide frame is matched at a reduced size (``CAMERA_MATCH_WIDTH``)."""
+        explains the change (``view_shift.shift_explains``). None where no shift does:
+        something big stepped into view. A wide frame is matched at a reduced size
+        (``CAMERA_MATCH_WIDTH``)."""
         height, width = gray.shape
         frame = gray.astype(np.float32)
         reduce = max(1, width // CAMERA_MATCH_WIDTH)
@@ -481,16 +478,9 @@ class AdaptiveBackground(MotionMethod):
         dy = reduce * (reach - (top + _vertex_offset(misfit[top - 1 : top + 2, left])))
         if math.hypot(dx, dy) < CAMERA_MOVE_LEAST:
             return None
-        # Compared where both views see the scene, on a grid (as the gain is).
-        margin_x, margin_y = math.ceil(abs(dx)) + 1, math.ceil(abs(dy)) + 1
-        inside = (
-            slice(margin_y, height - margin_y, GAIN_GRID),
-            slice(margin_x, width - margin_x, GAIN_GRID),
-        )
-        moved = _shifted(self._background, dx, dy, np.zeros_like(frame))
-        before = np.count_nonzero(np.abs(frame[inside] - self._background[inside]) > threshold)
-        after = np.count_nonzero(np.abs(frame[inside] - moved[inside]) > threshold)
-        return (dx, dy) if before and after <= CAMERA_MOVE_LEFT * before else None
+        # Checked on a grid, as the gain is measured.
+        explained = shift_explains(self._background, frame, dx, dy, threshold, GAIN_GRID)
+        return (dx, dy) if explained else None
 
     def _follow_scene(self, gray: GrayImage, threshold: float, dx: float, dy: float) -> None:
         """Move the whole model (dx, dy) pixels with the scene, so that only what moves
@@ -505,18 +495,18 @@ class AdaptiveBackground(MotionMethod):
         frame = gray.astype(np.float32)
 
         def moved(image: np.ndarray, smooth: bool = True) -> np.ndarray:
-            return _shifted(image, dx, dy, np.zeros_like(image), smooth)
+            return shifted(image, dx, dy, np.zeros_like(image), smooth)
 
-        background = _shifted(self._background, dx, dy, frame.copy())
+        background = shifted(self._background, dx, dy, frame.copy())
         explained = np.abs(frame - background) <= threshold
         background[explained] = frame[explained]
         model = self._model
         model[kernels.BACKGROUND] = background
-        model[kernels.ALTERNATE] = _shifted(self._alternate, dx, dy, frame.copy())
+        model[kernels.ALTERNATE] = shifted(self._alternate, dx, dy, frame.copy())
         for plane in (kernels.WEIGHT, kernels.DEVIATION):
             model[plane] = moved(model[plane])
         self._recent = deque(
-            (_shifted(seen, dx, dy, gray.copy()) for seen in self._recent),
+            (shifted(seen, dx, dy, gray.copy()) for seen in self._recent),
             maxlen=self.check_every,
         )
         self._previous_mask = moved(self._previous_mask, smooth=False)
@@ -571,19 +561,6 @@ def _vertex_offset(values: np.ndarray) -> float:
     before, middle, after = (float(v) for v in values)
     curvature = before - 2.0 * middle + after
     return 0.5 * (before - after) / curvature if curvature > 0 else 0.0
-
-
-def _shifted(
-    image: np.ndarray, dx: float, dy: float, into: np.ndarray, smooth: bool = True
-) -> np.ndarray:
-    """``image`` moved (dx, dy) pixels, drawn over ``into``, which shows where nothing of
-    ``image`` lands: bilinear (``smooth``, for grey levels), or nearest (masks, counts)."""
-    move = np.array([[1.0, 0.0, dx], [0.0, 1.0, dy]])
-    flags = cv2.INTER_LINEAR if smooth else cv2.INTER_NEAREST
-    size = (image.shape[1], image.shape[0])
-    return cv2.warpAffine(
-        image, move, size, dst=into, flags=flags, borderMode=cv2.BORDER_TRANSPARENT
-    )
 
 
 def relit(background: FloatImage, frame: GrayImage, still: np.ndarray, ridge: float) -> FloatImage:

@@ -3,6 +3,7 @@ whether it explains how one picture differs from another."""
 
 from __future__ import annotations
 
+import itertools
 import math
 
 import cv2
@@ -10,7 +11,20 @@ import numpy as np
 
 SHIFT_EXPLAINS = 0.25
 """A shift explains a change when, with the reference moved by it, at most this share of
-the pixels that differed still differ (the objects in view)."""
+the pixels that differed still differ (the objects in view)..."""
+
+SHIFT_SHOWS = 0.5
+"""... and, in each part of the view (``SHIFT_PARTS``), at least this share of the pixels
+that the shift changes in the reference differ in the picture: a view that moved moves
+all of its detail, where leaves that sway, which a shift of theirs may explain, leave
+the still scene's detail in place."""
+
+SHIFT_PARTS = 4
+"""Parts of the view across and down in which a shift must show."""
+
+SHIFT_DETAIL = 0.03
+"""The share of a part's pixels that the shift must change for the part to count (a
+part of plain wall or sky shows no move)."""
 
 
 def shifted(
@@ -36,16 +50,39 @@ def shift_explains(
 ) -> bool:
     """Whether ``reference`` (float32 grey levels) moved (dx, dy) explains how ``picture``
     differs from it by more than ``threshold``: compared where both views see the scene,
-    on every ``step``-th row and column, the pixels that differ are some, and at most
-    ``SHIFT_EXPLAINS`` of them still differ from the moved reference. False where the
-    views share no pixel."""
+    on every ``step``-th row and column, the pixels that differ are some, at most
+    ``SHIFT_EXPLAINS`` of them still differ from the moved reference, and in every part
+    of the view with detail enough, at least ``SHIFT_SHOWS`` of those that the move
+    changes differ. False where the views share no pixel."""
     height, width = reference.shape
     margin_x, margin_y = math.ceil(abs(dx)) + 1, math.ceil(abs(dy)) + 1
     inside = (
         slice(margin_y, height - margin_y, step),
         slice(margin_x, width - margin_x, step),
     )
-    moved = shifted(reference, dx, dy, np.zeros_like(reference))
-    before = np.count_nonzero(np.abs(picture[inside] - reference[inside]) > threshold)
-    after = np.count_nonzero(np.abs(picture[inside] - moved[inside]) > threshold)
-    return bool(before and after <= SHIFT_EXPLAINS * before)
+    moved = shifted(reference, dx, dy, np.zeros_like(reference))[inside]
+    seen, reference = picture[inside], reference[inside]
+    differ = np.abs(seen - reference) > threshold
+    before = np.count_nonzero(differ)
+    after = np.count_nonzero(np.abs(seen - moved) > threshold)
+    if not before or after > SHIFT_EXPLAINS * before:
+        return False
+    moves = np.abs(moved - reference) > threshold
+    return _shows_everywhere(moves, differ & moves)
+
+
+def _shows_everywhere(moves: np.ndarray, shown: np.ndarray) -> bool:
+    """Whether in each of the ``SHIFT_PARTS`` x ``SHIFT_PARTS`` parts of the view where
+    ``moves`` holds ``SHIFT_DETAIL`` of the pixels, ``shown`` holds ``SHIFT_SHOWS`` of
+    them."""
+    height, width = moves.shape
+    rows = np.linspace(0, height, SHIFT_PARTS + 1).astype(int)
+    cols = np.linspace(0, width, SHIFT_PARTS + 1).astype(int)
+    for top, bottom in itertools.pairwise(rows):
+        for left, right in itertools.pairwise(cols):
+            part = (slice(top, bottom), slice(left, right))
+            changed = np.count_nonzero(moves[part])
+            detailed = changed and changed >= SHIFT_DETAIL * moves[part].size
+            if detailed and np.count_nonzero(shown[part]) < SHIFT_SHOWS * changed:
+                return False
+    return True

@@ -110,3 +110,26 @@ def test_a_dark_person_who_waits_stays_whole_and_leaves_no_ghost():
     counts, _, _ = run_scene(scene)
     assert counts.detection_rate >= 0.95, counts.as_dict()
     assert counts.false_alarm_rate <= 0.05, counts.as_dict()
+
+
+@pytest.mark.parametrize("knock", [(4.0, 0.0), (0.0, 3.0), (3.0, 1.0)])
+def test_a_small_knock_that_changes_only_the_edges_raises_nothing(knock):
+    # At 640x480 a knock of a few pixels is one or two at detection size: the scene's
+    # edges change, a tenth of the view, and the walker must stay the only object.
+    scene = Scene(
+        name="small-knock",
+        size=(640, 480),
+        fps=25.0,
+        frames=120,
+        camera_move_frame=60,
+        camera_move=knock,
+        objects=(MovingObject((-60, 200), (90.0, 0.0), (50, 80), 200, first_frame=20),),
+    )
+    pipeline = Pipeline(PipelineConfig(), fps=scene.fps)
+    after = ObjectCounts()
+    for index in range(scene.frames):
+        result = pipeline.process(scene.frame(index))
+        if index >= scene.camera_move_frame:
+            after.add([t.box for t in scene.truth(index)], [d.box for d in result.detections])
+    assert after.fp == 0, after.as_dict()
+    assert after.detection_rate >= 0.95, after.as_dict()

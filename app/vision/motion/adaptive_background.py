@@ -110,14 +110,20 @@ still pixels around an object some sixty pixels across."""
 LIGHT_WINDOW_LEAST = 0.05
 """The least (weighted) share of still pixels a window needs for its own fit."""
 
-CAMERA_MOVE_SHARE = 0.2
+CAMERA_MOVE_SHARE = 0.05
 """The share of the frame that must turn "moving" at once (and ``SUDDEN_GROWTH`` times
-last frame's) for the camera to be suspected of having moved: a knock on a plain scene
-changes little more than its edges."""
+last frame's) for the camera to be suspected of having moved: a knock of a pixel or two
+changes little more than the scene's edges, a tenth of a street scene."""
+
+LEARNING_CAMERA_MOVE_SHARE = 0.2
+"""``CAMERA_MOVE_SHARE`` while the scene is being learned: the model is then little more
+than the first frame, which much of the view may differ from for other reasons (what
+was in view then, leaves whose sway is not known yet)."""
 
 SUDDEN_GROWTH = 2.0
 """How many times last frame's raw motion a frame must have for the change to count as
-sudden (with ``CAMERA_MOVE_SHARE``)."""
+sudden (with ``CAMERA_MOVE_SHARE``): what a knock does, where an object coming closer
+grows frame by frame."""
 
 CAMERA_MOVE_REACH = 0.08
 """The largest shift of the view sought, as a share of the frame's width."""
@@ -203,6 +209,8 @@ class AdaptiveBackground(MotionMethod):
         """Settled, stopped, stirring and the two raw planes (``kernels.STATE``)."""
         self._raw_plane = kernels.RAW[0]
         """The state's plane that holds the previous frame's raw motion."""
+        self._previous_raw = 0
+        """Pixels of that plane that are set."""
         self._rings: np.ndarray | None = None
         self._recent: deque[GrayImage] = deque(maxlen=check_every)
         """The last ``check_every`` frames, oldest first."""
@@ -294,8 +302,12 @@ class AdaptiveBackground(MotionMethod):
         self._set_threshold(threshold, rates, settings)
         bounds = np.empty(kernels.BOUNDS)
         bounds[kernels.GAIN_LIMIT] = GAIN_INLIERS * threshold
+        # Compared only where the frame may be a light switch or a knock: the first
+        # changes most of the view, the second much of it at once.
+        share = LEARNING_CAMERA_MOVE_SHARE if learning else CAMERA_MOVE_SHARE
+        sudden = max(share * gray.size, SUDDEN_GROWTH * self._previous_raw)
         bounds[kernels.COMPARE_ONLY_ABOVE] = (
-            min(self.light_switch_fraction, CAMERA_MOVE_SHARE) * gray.size if fast else -1.0
+            min(self.light_switch_fraction * gray.size, sudden) if fast else -1.0
         )
         outputs = np.empty((kernels.OUTPUTS, *gray.shape), np.uint8)
         difference, mask = outputs[kernels.DIFFERENCE], outputs[kernels.MASK]
@@ -328,7 +340,7 @@ class AdaptiveBackground(MotionMethod):
                 return MotionResult(np.zeros_like(gray), difference, threshold, global_change=True)
             # A sudden change over much of the view that is no light: the camera may
             # have been knocked (or something big stepped in front of it: motion).
-            if not followed and changed > CAMERA_MOVE_SHARE * gray.size and self._sudden(changed):
+            if not followed and changed > sudden:
                 shift = self._scene_shift(gray, threshold)
                 if shift is not None:
                     self._follow_scene(gray, threshold, *shift)
@@ -347,6 +359,7 @@ class AdaptiveBackground(MotionMethod):
         self._recent.append(gray)
         self._previous_mask = mask
         self._raw_plane = raw_plane
+        self._previous_raw = changed
         self._previous_moving = moving
         return MotionResult(mask, difference, threshold)
 
@@ -389,6 +402,7 @@ class AdaptiveBackground(MotionMethod):
         self._state = np.zeros((kernels.STATE, *gray.shape), np.uint8)
         self._state[kernels.SETTLED] = 255
         self._raw_plane = kernels.RAW[1]
+        self._previous_raw = 0
         self._rings = kernels.ring_rows(gray.shape[1])
         self._still_frames = np.zeros(gray.shape, np.uint16)
         self._recent = deque([gray], maxlen=self.check_every)
@@ -448,12 +462,6 @@ class AdaptiveBackground(MotionMethod):
         self._state[kernels.SETTLED][where] = 0
         self._previous_mask = kept
         self._previous_moving = kept_pixels
-
-    def _sudden(self, moving: int) -> bool:
-        """Whether ``moving`` raw pixels are many times last frame's: what a knock does,
-        where an object coming closer grows frame by frame."""
-        assert self._state is not None
-        return moving > SUDDEN_GROWTH * cv2.countNonZero(self._state[self._raw_plane])
 
     def _scene_shift(self, gray: GrayImage, threshold: float) -> tuple[float, float] | None:
         """How far (x, y pixels) the scene moved in the picture, where the camera was
@@ -547,6 +555,7 @@ class AdaptiveBackground(MotionMethod):
         self._rings = None
         self._recent.clear()
         self._previous_mask = None
+        self._previous_raw = 0
         self._previous_moving = 0
         self._still_frames = None
         self._frame_index = 0

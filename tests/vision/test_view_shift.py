@@ -1,0 +1,58 @@
+"""Whether a shift of the view explains how a picture differs from the scene."""
+
+from __future__ import annotations
+
+import cv2
+import numpy as np
+import pytest
+
+from app.vision.view_shift import shift_explains, shifted
+
+SIZE = (120, 160)
+THRESHOLD = 12.0
+
+
+def detailed_scene(seed: int, contrast: float = 40.0) -> np.ndarray:
+    rng = np.random.default_rng(seed)
+    texture = cv2.GaussianBlur(rng.normal(0.0, 1.0, SIZE), (0, 0), 1.5)
+    return np.clip(110 + contrast * texture / texture.std(), 0, 255).astype(np.float32)
+
+
+def moved_view(scene: np.ndarray, dx: float, dy: float) -> np.ndarray:
+    """``scene`` as a camera moved (-dx, -dy) pixels sees it: its content moved (dx, dy)."""
+    return shifted(scene, dx, dy, scene.copy())
+
+
+@pytest.mark.parametrize("move", [(2.0, 0.0), (0.0, -1.5), (3.0, 1.0)])
+def test_a_view_that_moved_is_explained_by_its_shift(move):
+    scene = detailed_scene(1)
+    picture = moved_view(scene, *move)
+    assert shift_explains(scene, picture, *move, THRESHOLD)
+    assert not shift_explains(scene, picture, -move[0], -move[1], THRESHOLD)
+
+
+def test_an_object_in_a_moved_view_leaves_it_explained():
+    scene = detailed_scene(2)
+    picture = moved_view(scene, 2.0, 0.0)
+    picture[40:70, 60:80] = 250.0  # Someone in view, a fifth of the change at most.
+    assert shift_explains(scene, picture, 2.0, 0.0, THRESHOLD)
+
+
+def test_leaves_that_sway_by_a_shift_of_their_own_are_no_moved_view():
+    # Half the view, leaves, sways two pixels sideways; the rest, of fainter detail,
+    # stays put. The shift explains nearly all that changed: only where the still scene
+    # does not follow it does it show that the view did not move.
+    scene = detailed_scene(3, contrast=10.0)
+    leaves = (slice(10, 110), slice(20, 120))
+    scene[leaves] = detailed_scene(5)[leaves]
+    picture = scene.copy()
+    picture[leaves] = moved_view(scene, 2.0, 0.0)[leaves]
+    assert not shift_explains(scene, picture, 2.0, 0.0, THRESHOLD)
+
+
+def test_a_shift_that_changes_nothing_where_the_picture_is_plain_still_counts():
+    # Detail on the left half only: the plain right half cannot show the move either way.
+    scene = detailed_scene(4)
+    scene[:, 80:] = 120.0
+    picture = moved_view(scene, 0.0, 2.0)
+    assert shift_explains(scene, picture, 0.0, 2.0, THRESHOLD)

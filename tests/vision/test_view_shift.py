@@ -43,7 +43,7 @@ def test_leaves_that_sway_by_a_shift_of_their_own_are_no_moved_view():
     # stays put. The shift explains nearly all that changed: only where the still scene
     # does not follow it does it show that the view did not move.
     scene = detailed_scene(3, contrast=10.0)
-    leaves = (slice(10, 110), slice(20, 120))
+    leaves = (slice(0, 120), slice(0, 80))
     scene[leaves] = detailed_scene(5)[leaves]
     picture = scene.copy()
     picture[leaves] = moved_view(scene, 2.0, 0.0)[leaves]
@@ -56,3 +56,14 @@ def test_a_shift_that_changes_nothing_where_the_picture_is_plain_still_counts():
     scene[:, 80:] = 120.0
     picture = moved_view(scene, 0.0, 2.0)
     assert shift_explains(scene, picture, 0.0, 2.0, THRESHOLD)
+
+
+def test_a_time_stamp_that_stays_put_over_plain_sky_leaves_a_moved_view_explained():
+    # The sky's part of the view has no detail but the stamp, which does not move.
+    scene = detailed_scene(6)
+    scene[:30, :] = 170.0
+    stamp = (slice(4, 16), slice(4, 36))
+    scene[stamp] = np.where(detailed_scene(7)[stamp] > 110, 250.0, 20.0)
+    picture = moved_view(scene, 2.0, 0.0)
+    picture[stamp] = scene[stamp]
+    assert shift_explains(scene, picture, 2.0, 0.0, THRESHOLD)

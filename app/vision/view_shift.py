@@ -66,13 +66,13 @@ def shift_explains(
         slice(margin_x, width - margin_x, step),
     )
     moved = shifted(reference, dx, dy, np.zeros_like(reference))[inside]
-    seen, reference = picture[inside], reference[inside]
-    differ = np.abs(seen - reference) > threshold
+    seen, still = picture[inside], reference[inside]
+    differ = np.abs(seen - still) > threshold
     before = np.count_nonzero(differ)
     after = np.count_nonzero(np.abs(seen - moved) > threshold)
     if not before or after > SHIFT_EXPLAINS * before:
         return False
-    moves = np.abs(moved - reference) > threshold
+    moves = np.abs(moved - still) > threshold
     return _shows_in_most_parts(moves, differ & moves)
 
 
@@ -88,7 +88,7 @@ def _shows_in_most_parts(moves: np.ndarray, shown: np.ndarray) -> bool:
         for left, right in itertools.pairwise(cols):
             part = (slice(top, bottom), slice(left, right))
             changed = np.count_nonzero(moves[part])
-            if changed and changed >= SHIFT_DETAIL * moves[part].size:
+            if changed >= max(1.0, SHIFT_DETAIL * moves[part].size):
                 detailed += 1
                 missed += int(np.count_nonzero(shown[part]) < SHIFT_SHOWS * changed)
     return missed <= SHIFT_MAY_MISS * detailed

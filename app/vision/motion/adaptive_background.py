@@ -526,14 +526,22 @@ class AdaptiveBackground(MotionMethod):
     def _absorb_still_regions(self, gray: GrayImage, mask: Mask) -> None:
         """Count, per motion region, frames without any change; absorb the stale ones."""
         assert self._still_frames is not None and self._state is not None
+        # Regions are sought in the box of the mask's pixels only, with a pixel of
+        # background around them (their borders are measured): most of a frame holds
+        # none. An empty mask gives a part of one pixel, and no region.
+        x, y, w, h = cv2.boundingRect(mask)
+        top, left = max(y - 1, 0), max(x - 1, 0)
+        part = mask[top : y + h + 1, left : x + w + 1]
         # 16-bit labels (half the memory to sweep) where they surely suffice: 8-connected
         # regions are at most a quarter of the pixels (lone pixels, one apart).
-        wide = mask.size // 4 >= 2**16 - 1
+        wide = part.size // 4 >= 2**16 - 1
         regions, labels = cv2.connectedComponents(
-            mask, connectivity=8, ltype=cv2.CV_32S if wide else cv2.CV_16U
+            part, connectivity=8, ltype=cv2.CV_32S if wide else cv2.CV_16U
         )
         kernels.age_still_regions(
             labels,
+            top,
+            left,
             regions,
             self._state[kernels.STIRRING],
             gray,

@@ -691,6 +691,8 @@ def _spread_row(values: GrayImage, reach: int, largest: bool, out: GrayImage) ->
 @compiled
 def age_still_regions(
     labels: np.ndarray,
+    top: int,
+    left: int,
     regions: int,
     stirring: Mask,
     gray: GrayImage,
@@ -709,6 +711,10 @@ def age_still_regions(
     frame ``step`` frames before, the last count: an object creeping a fraction of a
     pixel a frame is not stopped); any other pixel restarts at 0.
 
+    ``labels`` covers the part of the frame from (``top``, ``left``) that holds every
+    region with a pixel of background around it (the frame's edge aside): the other
+    images are whole frames, and outside that part nothing is a region.
+
     A stale region becomes background after ``relit_after`` frames when it is not an
     object: the same scene in another light (its frame correlates with its background
     by ``relit_correlation`` or more: a lamp, a shadow), a ghost (across its border the
@@ -724,7 +730,7 @@ def age_still_regions(
     stale[0] = False
     for y in range(rows):
         for x in range(cols):
-            if stirring[y, x] != 0:
+            if stirring[top + y, left + x] != 0:
                 stale[labels[y, x]] = False
     # Most regions on most checks are objects on the move, and need nothing more. The
     # stale ones large enough to judge get a row of sums: frame, background, their
@@ -749,8 +755,8 @@ def age_still_regions(
                 if at < 0:
                     continue
                 label = labels[y, x]
-                seen = np.float64(gray[y, x])
-                model = np.float64(background[y, x])
+                seen = np.float64(gray[top + y, left + x])
+                model = np.float64(background[top + y, left + x])
                 sums[at, 0] += seen
                 sums[at, 1] += model
                 sums[at, 2] += seen * seen
@@ -758,8 +764,8 @@ def age_still_regions(
                 sums[at, 4] += seen * model
                 for ny, nx in ((y - 1, x), (y + 1, x), (y, x - 1), (y, x + 1)):
                     if 0 <= ny < rows and 0 <= nx < cols and labels[ny, nx] != label:
-                        sums[at, 5] += abs(np.float64(gray[ny, nx]) - seen)
-                        sums[at, 6] += abs(np.float64(background[ny, nx]) - model)
+                        sums[at, 5] += abs(np.float64(gray[top + ny, left + nx]) - seen)
+                        sums[at, 6] += abs(np.float64(background[top + ny, left + nx]) - model)
     after = np.full(regions, relit_after, np.int64)
     kept = np.zeros(regions, np.bool_)
     for label in range(1, regions):
@@ -778,12 +784,19 @@ def age_still_regions(
                 continue
         after[label] = absorb_after
         kept[label] = frame_step >= clear_edge * model_step
+    # Outside the part, nothing is a region: every count restarts.
+    still_frames[:top] = 0
+    still_frames[top + rows :] = 0
+    still_frames[top : top + rows, :left] = 0
+    still_frames[top : top + rows, left + cols :] = 0
+    stopped_out[...] = 0
     for y in range(rows):
         for x in range(cols):
             label = labels[y, x]
-            count = still_frames[y, x] + step if stale[label] else 0
+            at = (top + y, left + x)
+            count = still_frames[at] + step if stale[label] else 0
             if count >= after[label]:
-                background[y, x] = np.float32(gray[y, x])
+                background[at] = np.float32(gray[at])
                 count = 0
-            still_frames[y, x] = count
-            stopped_out[y, x] = 255 if kept[label] else 0
+            still_frames[at] = count
+            stopped_out[at] = 255 if kept[label] else 0

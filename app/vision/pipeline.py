@@ -14,6 +14,7 @@ from dataclasses import dataclass, field, replace
 from typing import ParamSpec, Protocol, TypeVar
 
 import cv2
+import numpy as np
 
 from app.vision.blobs import BlobExtractor
 from app.vision.calibration import GroundPlane, GroundTracker
@@ -21,6 +22,7 @@ from app.vision.detections import Detection
 from app.vision.histogram import GreyStats, grey_stats
 from app.vision.morphology import Morphology
 from app.vision.motion import DEFAULT_METHOD, MotionResult, create_method
+from app.vision.motion.adaptive_background import warm_up as warm_up_adaptive
 from app.vision.preprocess import Denoise, DenoiseMethod, Downscale, Enhance, EnhanceMethod, to_gray
 from app.vision.scene_background import SceneBackground
 from app.vision.tracker import Tracker, TrackerConfig
@@ -183,6 +185,13 @@ class Pipeline:
         self.method.reset()
         self.tracker.reset()
         self._index = 0
+
+
+def warm_up() -> None:
+    """Compile the default pipeline's compiled stages (the first run on a machine) or load
+    them from the cache now, rather than on a camera's first activated frame."""
+    Denoise()(np.zeros((4, 4), np.uint8))
+    warm_up_adaptive()
 
 
 P = ParamSpec("P")

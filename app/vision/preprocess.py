@@ -12,6 +12,7 @@ from typing import Literal
 import cv2
 import numpy as np
 
+from app.vision.compiled import compiled
 from app.vision.types import GrayImage, Image
 
 DenoiseMethod = Literal["none", "median", "mean", "gaussian"]
@@ -52,7 +53,33 @@ class Denoise:
             return cv2.medianBlur(image, k)
         if self.method == "mean":
             return cv2.blur(image, (k, k))
+        if k == 3 and image.ndim == 2 and image.dtype == np.uint8 and min(image.shape) >= 2:
+            # The default, on every frame: OpenCV's result, for a third of its time on a
+            # live camera (one small compiled loop costs less to wake than OpenCV's call).
+            smoothed = np.empty_like(image)
+            gaussian_3x3(np.ascontiguousarray(image), smoothed)
+            return smoothed
         return cv2.GaussianBlur(image, (k, k), 0)
+
+
+@compiled
+def gaussian_3x3(image: GrayImage, out: GrayImage) -> None:
+    """``cv2.GaussianBlur(image, (3, 3), 0)`` of an 8-bit image at least 2x2, into ``out``:
+    the kernel [1, 2, 1] / 4 down and across, rounded half up, the edges reflected as
+    OpenCV's default border reflects them (-1 is 1)."""
+    rows, cols = image.shape
+    across = np.empty(cols, np.uint16)
+    for y in range(rows):
+        above = image[y - 1 if y > 0 else 1]
+        below = image[y + 1 if y < rows - 1 else rows - 2]
+        row = image[y]
+        for x in range(cols):
+            across[x] = np.uint16(above[x]) + np.uint16(2) * row[x] + below[x]
+        smoothed = out[y]
+        smoothed[0] = (np.uint16(2) * (across[0] + across[1]) + 8) >> 4
+        for x in range(1, cols - 1):
+            smoothed[x] = (across[x - 1] + np.uint16(2) * across[x] + across[x + 1] + 8) >> 4
+        smoothed[cols - 1] = (np.uint16(2) * (across[cols - 2] + across[cols - 1]) + 8) >> 4
 
 
 @dataclass(frozen=True)

@@ -32,7 +32,7 @@ import cv2
 from app.core.config import Settings
 from app.storage.db import Database
 from app.storage.files import SnapshotStore
-from app.vision.motion.adaptive_background import warm_up
+from app.vision.pipeline import warm_up
 from app.workers.analysis import signal_label
 from app.workers.bus import EventBus
 from app.workers.camera import CameraWorker, motion_end_message, status_fields

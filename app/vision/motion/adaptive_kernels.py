@@ -793,10 +793,10 @@ def age_still_regions(
     for y in range(rows):
         for x in range(cols):
             label = labels[y, x]
-            at = (top + y, left + x)
-            count = still_frames[at] + step if stale[label] else 0
+            pixel = (top + y, left + x)
+            count = still_frames[pixel] + step if stale[label] else 0
             if count >= after[label]:
-                background[at] = np.float32(gray[at])
+                background[pixel] = np.float32(gray[pixel])
                 count = 0
-            still_frames[at] = count
-            stopped_out[at] = 255 if kept[label] else 0
+            still_frames[pixel] = count
+            stopped_out[pixel] = 255 if kept[label] else 0

@@ -60,6 +60,7 @@ from app.core.config import Settings
 from app.storage import Database, SnapshotStore
 from app.vision.motion import DEFAULT_METHOD
 from app.vision.motion.frame_difference import FrameDifference
+from app.vision.pipeline import warm_up
 from app.workers.bus import EventBus
 from app.workers.camera import CameraWorker
 from app.workers.hub import FrameHub
@@ -311,6 +312,9 @@ def worker_main(conn: Connection, cv_threads: int | None) -> None:
     """A worker process: set OpenCV's threads, then run trials until told to stop (None)."""
     if cv_threads is not None:
         cv2.setNumThreads(cv_threads)
+    # As the server's camera process does: compiling the kernels (a machine's first run, or
+    # after an edit) must not fall in a trial's windows.
+    warm_up()
     conn.send(cv2.getNumThreads())
     while (spec := conn.recv()) is not None:
         with tempfile.TemporaryDirectory(prefix="data-", dir=spec.folder) as data_dir:

@@ -8,6 +8,7 @@ from dataclasses import dataclass
 import cv2
 
 from app.vision.detections import BOTTOM, LEFT, RIGHT, TOP, Box, Detection
+from app.vision.mask_box import motion_box
 from app.vision.types import Mask
 
 
@@ -26,13 +27,12 @@ class BlobExtractor:
     def __call__(self, mask: Mask, scale: float = 1.0) -> list[Detection]:
         # Contours are sought in the box of the mask's pixels only, with a pixel of
         # background around them (the same contours, for less of the frame to scan).
-        x, y, w, h = cv2.boundingRect(mask)
-        if w == 0:
+        box = motion_box(mask, 1)
+        if box is None:
             return []
-        x0, y0 = max(x - 1, 0), max(y - 1, 0)
-        part = mask[y0 : y + h + 1, x0 : x + w + 1]
+        rows, cols = box
         contours, _ = cv2.findContours(
-            part, cv2.RETR_EXTERNAL, cv2.CHAIN_APPROX_SIMPLE, offset=(x0, y0)
+            mask[box], cv2.RETR_EXTERNAL, cv2.CHAIN_APPROX_SIMPLE, offset=(cols.start, rows.start)
         )
         area_scale = scale * scale
         height, width = mask.shape[:2]

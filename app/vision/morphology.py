@@ -8,6 +8,7 @@ from functools import cached_property
 import cv2
 import numpy as np
 
+from app.vision.mask_box import motion_box
 from app.vision.types import Mask
 
 
@@ -39,19 +40,15 @@ class Morphology:
 
     def __call__(self, mask: Mask) -> Mask:
         cleaned = np.zeros_like(mask)
-        x, y, w, h = cv2.boundingRect(mask)
-        if w == 0:
+        box = motion_box(mask, self._margin)
+        if box is None:
             return cleaned
-        height, width = mask.shape[:2]
-        margin = self._margin
-        x0, y0 = max(x - margin, 0), max(y - margin, 0)
-        x1, y1 = min(x + w + margin, width), min(y + h + margin, height)
-        part = mask[y0:y1, x0:x1]
+        part = mask[box]
         if self._open is not None:
             part = cv2.morphologyEx(part, cv2.MORPH_OPEN, self._open)
         if self._close is not None:
             part = cv2.morphologyEx(part, cv2.MORPH_CLOSE, self._close)
-        cleaned[y0:y1, x0:x1] = part
+        cleaned[box] = part
         return cleaned
 
 

@@ -190,7 +190,7 @@ class Pipeline:
 def warm_up() -> None:
     """Compile the default pipeline's compiled stages (the first run on a machine) or load
     them from the cache now, rather than on a camera's first activated frame."""
-    Denoise()(np.zeros((4, 4), np.uint8))
+    Pipeline().prepare(np.zeros((4, 4), np.uint8))
     warm_up_adaptive()
 
 

@@ -54,8 +54,8 @@ class Denoise:
         if self.method == "mean":
             return cv2.blur(image, (k, k))
         if k == 3 and image.ndim == 2 and image.dtype == np.uint8 and min(image.shape) >= 2:
-            # The default, on every frame: OpenCV's result, for a third of its time on a
-            # live camera (one small compiled loop costs less to wake than OpenCV's call).
+            # The default, on every frame: OpenCV's result in about half its time (one
+            # small compiled loop, which costs less to wake than OpenCV's call).
             smoothed = np.empty_like(image)
             gaussian_3x3(np.ascontiguousarray(image), smoothed)
             return smoothed

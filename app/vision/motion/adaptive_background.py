@@ -82,6 +82,7 @@ from dataclasses import replace
 import cv2
 import numpy as np
 
+from app.vision.mask_box import motion_box
 from app.vision.motion import adaptive_kernels as kernels
 from app.vision.motion.adaptive_kernels import GUARD_REACH, LEARNING_REACH
 from app.vision.motion.base import MotionMethod, MotionResult
@@ -529,9 +530,8 @@ class AdaptiveBackground(MotionMethod):
         # Regions are sought in the box of the mask's pixels only, with a pixel of
         # background around them (their borders are measured): most of a frame holds
         # none. An empty mask gives a part of one pixel, and no region.
-        x, y, w, h = cv2.boundingRect(mask)
-        top, left = max(y - 1, 0), max(x - 1, 0)
-        part = mask[top : y + h + 1, left : x + w + 1]
+        rows, cols = motion_box(mask, 1) or (slice(0, 1), slice(0, 1))
+        part = mask[rows, cols]
         # 16-bit labels (half the memory to sweep) where they surely suffice: 8-connected
         # regions are at most a quarter of the pixels (lone pixels, one apart).
         wide = part.size // 4 >= 2**16 - 1
@@ -540,8 +540,8 @@ class AdaptiveBackground(MotionMethod):
         )
         kernels.age_still_regions(
             labels,
-            top,
-            left,
+            rows.start,
+            cols.start,
             regions,
             self._state[kernels.STIRRING],
             gray,

@@ -64,7 +64,7 @@ from app.vision.motion.frame_difference import FrameDifference
 from app.vision.pipeline import warm_up
 from app.workers.bus import EventBus
 from app.workers.camera import CameraWorker
-from app.workers.hub import FrameHub
+from app.workers.hub import FrameHub, viewer_jpeg
 
 FPS = 25.0
 SIZE = (640, 480)
@@ -169,7 +169,7 @@ class Viewers:
     """One viewer per hub, as ``app/api/routes/streams.py`` serves MJPEG, minus the socket.
 
     An asyncio event loop in its own thread (the server's loop); each viewer awaits
-    ``hub.next`` and gets the frame's JPEG with ``asyncio.to_thread``, like the route.
+    ``hub.next`` and gets the frame's JPEG with ``viewer_jpeg``, like the route.
     A viewer ends when its hub closes (the camera stops).
     """
 
@@ -194,7 +194,7 @@ class Viewers:
                     if item is None:
                         continue
                     seq = item.seq
-                    await asyncio.to_thread(item.jpeg)
+                    await viewer_jpeg(item, "picture")
                     self.served[index] += 1
         except Exception:
             self.errors.append(traceback.format_exc())

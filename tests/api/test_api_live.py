@@ -12,7 +12,14 @@ import cv2
 import httpx
 import numpy as np
 
-from tests.api.vigil_livekit import Running, WsClient, add_camera, read_mjpeg_frames, wait_for
+from tests.api.vigil_livekit import (
+    Running,
+    WsClient,
+    add_camera,
+    free_socket,
+    read_mjpeg_frames,
+    wait_for,
+)
 
 
 def _add(server: Running, video: Path, **extra: object) -> int:
@@ -71,6 +78,31 @@ def test_mjpeg_frames_decode_and_histogram(
     image = cv2.imdecode(np.frombuffer(single.content, np.uint8), cv2.IMREAD_COLOR)
     assert image is not None and image.shape == (240, 320, 3)
     assert httpx.get(f"{server.base}/api/cameras/999/stream.mjpg").status_code == 404
+
+
+def test_a_viewer_that_leaves_is_let_go_with_frames_coming_or_not(
+    serve: Callable[..., Running], motion_video: Path
+) -> None:
+    """A camera process sends pictures only while someone watches: a viewer that closed
+    its stream must stop counting, at its next frame or, with none coming, in a second."""
+    server = serve()
+    cameras = server.server.config.app.state.services.cameras
+    live = _add(server, motion_video)
+    probe = free_socket()
+    port = probe.getsockname()[1]
+    probe.close()  # Nothing listens there: a camera that sends no frames.
+    silent = add_camera(server.base, f"http://127.0.0.1:{port}/video.mjpg", name="gone")
+    for camera_id, parts in ((live, 3), (silent, 0)):
+        hub = cameras.get(camera_id).hub
+        url = f"{server.base}/api/cameras/{camera_id}/stream.mjpg"
+        with httpx.stream("GET", url, timeout=10) as r:
+            chunks = r.iter_bytes()  # Held: a generator let go closes the connection.
+            if parts:
+                read_mjpeg_frames(chunks, parts)
+            wait_for(lambda hub=hub: hub.watching["picture"] == 1, 5, "the viewer to count")
+            time.sleep(1.5)  # Past the route's one-second wait for a frame.
+            assert hub.watching["picture"] == 1, "a viewer still there was let go"
+        wait_for(lambda hub=hub: hub.watching["picture"] == 0, 3, "the viewer to be let go")
 
 
 def test_stream_shows_red_boxes_when_active(

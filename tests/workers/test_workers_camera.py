@@ -10,6 +10,7 @@ from typing import Any
 from app.sources.synthetic import MovingObject, Scene
 from app.storage import Database
 from app.workers.camera import PLAIN_SLEEP_S, CameraWorker
+from app.workers.hub import viewer_jpeg
 from tests.api.vigil_livekit import FPS, MjpegCamera, wait_for, write_video
 from tests.conftest import write_scene_video
 from tests.workers.conftest import make_worker, worker_parts
@@ -49,9 +50,13 @@ def test_frames_are_encoded_only_when_watched_and_once(
         assert worker.processed == 0, "no detection before Activate"
         latest = worker.hub.latest
         assert latest is not None
-        # Nothing to draw: viewers get the camera's own JPEG, neither decoded nor encoded.
-        assert latest.source.jpeg is not None and latest.jpeg() == latest.source.jpeg
-        latest.histogram_jpeg()
+        # Nothing to draw: viewers get the camera's own JPEG, neither decoded nor encoded,
+        # and made already (a viewer's loop takes it at once, with no worker thread).
+        assert latest.source.jpeg is not None and latest.made("picture") == latest.source.jpeg
+        assert asyncio.run(viewer_jpeg(latest, "picture")) == latest.source.jpeg
+        assert latest.made("histogram") is None
+        histogram = asyncio.run(viewer_jpeg(latest, "histogram"))
+        assert histogram[:2] == b"\xff\xd8" and latest.made("histogram") == histogram
         assert (worker.encodes.frames, worker.encodes.histograms) == (0, 1)
         assert worker.state == "live" and 10 < worker.fps < 20, worker.fps
         worker.set_active(True)
@@ -60,8 +65,10 @@ def test_frames_are_encoded_only_when_watched_and_once(
             10,
             "a frame with boxes",
         )
-        assert boxed.jpeg() is boxed.jpeg()  # Many viewers, one encode.
+        assert boxed.made("picture") is None, "boxes to draw: nothing is made yet"
+        assert asyncio.run(viewer_jpeg(boxed, "picture")) is boxed.jpeg()  # One encode.
         assert worker.encodes.frames == 1 and boxed.jpeg() != boxed.source.jpeg
+        assert boxed.made("picture") is boxed.jpeg()
     finally:
         worker.request_stop()
         assert worker.join(5)

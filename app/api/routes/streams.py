@@ -11,7 +11,7 @@ from fastapi.responses import StreamingResponse
 from app.api.services import services, worker_or_404
 from app.vision.annotate import status_card
 from app.workers.camera_host import Camera
-from app.workers.hub import Kind, Picture, encode_jpeg
+from app.workers.hub import Kind, Picture, encode_jpeg, viewer_jpeg
 
 router = APIRouter(prefix="/api/cameras", tags=["streams"])
 
@@ -39,9 +39,13 @@ async def _frames(request: Request, camera: Camera, kind: Kind) -> AsyncIterator
     with hub.watch(kind):
         while not svc.closing and not hub.closed:
             item = await hub.next(seq, 1.0, kind)
-            if await request.is_disconnected():
-                return
             if item is None:
+                # Starlette's response lets a client that went go at once where the
+                # server says so (uvicorn does), else at the next frame's write. With
+                # no frame coming, it is asked here, each second; not each frame, where
+                # asking cost this loop about a third of its work.
+                if await request.is_disconnected():
+                    return
                 state = (camera.state, camera.reason)
                 if state[0] not in SENDING and state != carded:
                     carded = state
@@ -50,9 +54,7 @@ async def _frames(request: Request, camera: Camera, kind: Kind) -> AsyncIterator
                 continue
             carded = None
             seq = item.seq
-            encode = item.histogram_jpeg if kind == "histogram" else item.jpeg
-            data = await asyncio.to_thread(encode)
-            yield mjpeg_part(data)
+            yield mjpeg_part(await viewer_jpeg(item, kind))
 
 
 @router.get("/{camera_id}/stream.mjpg")
@@ -94,12 +96,12 @@ async def _latest(camera: Camera, kind: Kind) -> Picture:
 async def frame(request: Request, camera_id: int) -> Response:
     """The newest annotated frame, for pages that poll (more cameras than connections)."""
     item = await _latest(worker_or_404(request, camera_id), "picture")
-    data = await asyncio.to_thread(item.jpeg)
+    data = await viewer_jpeg(item, "picture")
     return Response(data, media_type="image/jpeg", headers=NO_CACHE)
 
 
 @router.get("/{camera_id}/histogram.jpg")
 async def histogram_frame(request: Request, camera_id: int) -> Response:
     item = await _latest(worker_or_404(request, camera_id), "histogram")
-    data = await asyncio.to_thread(item.histogram_jpeg)
+    data = await viewer_jpeg(item, "histogram")
     return Response(data, media_type="image/jpeg", headers=NO_CACHE)

@@ -49,8 +49,8 @@ class Settings(BaseSettings):
     read_timeout_ms: int = 2000
     camera_processes: int = Field(default=0, ge=0)
     """Processes the cameras are spread over (0 = one per CPU), each started with its first
-    camera: one process's threads are bound by Python's GIL at about 20 activated 640x480
-    cameras on two cores, two processes carry about 26 (bench/bench_cameras.py)."""
+    camera: one process's threads are bound by Python's GIL at 20-30 activated 640x480
+    cameras on two cores, two processes carry 26-36 (bench/bench_cameras.py)."""
     opencv_threads: int = Field(default=1, ge=0)
     """OpenCV's own worker threads (0 = its default). Each camera has a thread already;
     OpenCV's parallel loops on small frames cost more CPU than they save."""

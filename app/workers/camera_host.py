@@ -1,8 +1,8 @@
 """Cameras in worker processes: the process model of ``vigil serve``.
 
-One process with a thread per camera is bound by the GIL at about 20 activated
-640x480 cameras on two cores, where two processes carry about 26, the cores then
-all but full (``bench/bench_cameras.py``).
+One process with a thread per camera is bound by the GIL at 20-30 activated
+640x480 cameras on two cores, where two processes carry 26-36, the cores then all
+but full (``bench/bench_cameras.py``, as a shared machine's speed varies).
 So the cameras run in up to ``camera_processes`` processes (default: one per CPU),
 each a set of ``CameraWorker`` threads, started as cameras need them. The server
 keeps a ``RemoteCamera`` per camera with the face the API uses (``Camera``: hub,

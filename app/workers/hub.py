@@ -72,10 +72,12 @@ class LiveFrame:
         return picture
 
     def made(self, kind: Kind) -> bytes | None:
-        with self._lock:
-            if kind == "histogram":
-                return self._histogram
-            return self._jpeg if self._jpeg is not None else self._passed_on()
+        # Without the lock: an event loop asks, while another viewer may hold it for a
+        # whole encode. A field read is whole, and what is drawn was fixed at publish.
+        if kind == "histogram":
+            return self._histogram
+        jpeg = self._jpeg
+        return jpeg if jpeg is not None else self._passed_on()
 
     def jpeg(self) -> bytes:
         with self._lock:

@@ -41,9 +41,9 @@ async def _frames(request: Request, camera: Camera, kind: Kind) -> AsyncIterator
             item = await hub.next(seq, 1.0, kind)
             if item is None:
                 # Starlette's response lets a client that went go at once where the
-                # server says so (uvicorn does), else at the next frame's write. With
-                # no frame coming, it is asked here, each second; not each frame, where
-                # asking cost this loop about a third of its work.
+                # server reports it (uvicorn does); where it does not, a write to the
+                # closed connection fails. With no frame to write, this asks, each
+                # second; not each frame, where asking cost this loop a third of its work.
                 if await request.is_disconnected():
                     return
                 state = (camera.state, camera.reason)

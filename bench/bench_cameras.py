@@ -18,7 +18,8 @@ nothing is drawn on it).
 (a) CPU per 640x480 frame of one camera paced at 25 fps in a worker process:
     idle (live, not activated) and activated, each unwatched and with one
     viewer, with OpenCV's own thread count and with cv2.setNumThreads(1);
-    and the Motion daemon (/usr/bin/motion) on the same clip in the same run.
+    and the Motion daemon (/usr/bin/motion) on the same clip in the same run;
+    and, as a floor, decoding and segmentation alone (the default method, paced).
 (a2) CPU per frame at load: 8 activated cameras in one worker process (OpenCV
     1 thread), and Motion with the same 8 cameras in one daemon.
 (b) The largest number N of activated cameras for which every camera runs
@@ -58,10 +59,12 @@ from _common import Cell, add_data_argument, fmt, median, print_environment, pri
 from bench_pipeline import load_footage, ping_pong, resized, write_mjpg
 
 from app.core.config import Settings
+from app.sources.frames import JpegFrame
+from app.sources.live import FileSource
 from app.storage import Database, SnapshotStore
 from app.vision.motion import DEFAULT_METHOD
 from app.vision.motion.frame_difference import FrameDifference
-from app.vision.pipeline import warm_up
+from app.vision.pipeline import Pipeline, PipelineConfig, warm_up
 from app.workers.bus import EventBus
 from app.workers.camera import CameraWorker
 from app.workers.hub import FrameHub, viewer_jpeg
@@ -656,6 +659,48 @@ def measure_paced(clip: Path, folder: Path, windows: Windows) -> list[PacedRow]:
     return rows
 
 
+def segmentation_floor(clip: Path, windows: Windows) -> list[float]:
+    """Per window, the thread CPU milliseconds per frame of what no activated camera
+    with the default method can skip: its JPEG decoded to grey at detection size (as the
+    camera decodes it), prepared (denoised) and segmented, one frame every frame period.
+    Run in a spawned process with one OpenCV thread. Reading, the stages after
+    segmentation, alarms and waking up are left out, so a camera costs more."""
+    cv2.setNumThreads(1)
+    warm_up()
+    source = FileSource(clip)
+    jpegs = []
+    for _ in range(SOURCE_FRAMES):
+        frame = source.read()
+        if not isinstance(frame, JpegFrame):
+            raise SystemExit(f"{clip} does not hand over JPEGs")
+        jpegs.append(frame.jpeg)
+    source.close()
+    pipeline = Pipeline(PipelineConfig(grey_stats=False), FPS)
+    bounds = windows.bounds(time.monotonic())
+    cpu = [0.0] * windows.count
+    frames = [0] * windows.count
+    due = time.monotonic()
+    for jpeg in itertools.cycle(jpegs):
+        due += 1.0 / FPS
+        sleep_until(due)
+        if due >= bounds[-1]:
+            break
+        start = time.thread_time()
+        gray = JpegFrame(jpeg).gray(pipeline.config.detect_width)
+        pipeline.method.apply(pipeline.prepare(gray))
+        window = sum(due >= bound for bound in bounds) - 1
+        if window >= 0:
+            cpu[window] += time.thread_time() - start
+            frames[window] += 1
+    return [1000 * c / n if n else float("nan") for c, n in zip(cpu, frames, strict=True)]
+
+
+def measure_floor(clip: Path, windows: Windows) -> float:
+    """``segmentation_floor`` in a spawned process: the median over the windows."""
+    with mp.get_context("spawn").Pool(1) as pool:
+        return median(pool.apply(segmentation_floor, (clip, windows)))
+
+
 @dataclass(frozen=True)
 class CpuFigures:
     """What section (a) hands to (b)'s search, from one camera with one OpenCV thread."""
@@ -670,10 +715,11 @@ def measure_cpu(args: argparse.Namespace, clips: Sequence[Path], tmp: Path) -> C
     """Sections (a) and (a2); returns the figures that seed section (b)'s search."""
     windows = Windows(args.warmup, args.cpu_window, args.repeat)
     paced = measure_paced(clips[0], tmp, windows)
+    floor = measure_floor(clips[0], windows)
     motion: MotionRun | None = None
     if MOTION.is_file():
         motion = measure_motion(clips[:1], tmp, windows)
-    print_paced(args, paced, motion)
+    print_paced(args, paced, motion, floor)
     measure_at_load(args, clips, tmp, windows)
     one = {row.trial.mode: row for row in paced if row.cv_threads == 1}
     return CpuFigures(
@@ -732,7 +778,9 @@ def print_motion_problems(motion: MotionRun) -> None:
         print("Motion's problems:", *motion.problems, sep="\n    ")
 
 
-def print_paced(args: argparse.Namespace, paced: list[PacedRow], motion: MotionRun | None) -> None:
+def print_paced(
+    args: argparse.Namespace, paced: list[PacedRow], motion: MotionRun | None, floor_ms: float
+) -> None:
     motion_ms = median(motion.ms_per_frame) if motion is not None else float("nan")
     rows: list[list[Cell]] = [
         [
@@ -781,15 +829,26 @@ def print_paced(args: argparse.Namespace, paced: list[PacedRow], motion: MotionR
     )
     if motion is None:
         print(f"Motion: skipped, {MOTION} is absent (Debian: apt-get install motion)")
-        return
-    for mode, label in ((ACTIVE, "Vigil activated unwatched"), (ACTIVE_CHEAPEST, "  the same")):
-        ratios = ", ".join(
-            f"{fmt(row.ms / motion_ms, 2)} with OpenCV {row.threads}"
-            for row in paced
-            if row.trial.mode == mode
-        )
-        print(f"{label} ({mode.method}) / Motion, CPU per frame: {ratios}")
-    print_motion_problems(motion)
+    else:
+        for mode, label in (
+            (ACTIVE, "Vigil activated unwatched"),
+            (ACTIVE_CHEAPEST, "  the same"),
+        ):
+            ratios = ", ".join(
+                f"{fmt(row.ms / motion_ms, 2)} with OpenCV {row.threads}"
+                for row in paced
+                if row.trial.mode == mode
+            )
+            print(f"{label} ({mode.method}) / Motion, CPU per frame: {ratios}")
+    ratio = f" = {fmt(floor_ms / motion_ms, 2)} x Motion" if motion is not None else ""
+    print(
+        f"Decoding and segmentation alone ({DEFAULT_METHOD}, paced at {FPS:g} fps, OpenCV 1 "
+        f"thread, thread CPU): {fmt(floor_ms, 2)} ms/frame{ratio}\n"
+        "    what an activated camera cannot skip: reading, the stages after segmentation,"
+        " alarms and waking up come on top"
+    )
+    if motion is not None:
+        print_motion_problems(motion)
 
 
 # --- (b) cameras per process model --------------------------------------------------------

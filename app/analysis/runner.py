@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import contextlib
 import functools
 import itertools
 import math
@@ -150,11 +151,36 @@ def analyze(
     if truth is not None:
         truth.check_size(source.size)
     out_dir.mkdir(parents=True, exist_ok=True)
+    remove_earlier_outputs(out_dir)
     (out_dir / "snapshots").mkdir(exist_ok=True)
     (out_dir / "differences").mkdir(exist_ok=True)
     if options.masks:
         (out_dir / "masks").mkdir(exist_ok=True)
     return _Analysis(source, out_dir, options, truth, progress, on_frame).run()
+
+
+EARLIER_OUTPUTS = (
+    ("snapshots", "event-[0-9][0-9][0-9][0-9]*.jpg"),
+    ("differences", "event-[0-9][0-9][0-9][0-9]*.jpg"),
+    ("masks", "[0-9][0-9][0-9][0-9][0-9][0-9]*.png"),
+    (".", "evaluation.json"),
+)
+"""Files an earlier analysis (or ``vigil evaluate``) wrote into an output folder that
+this one may not write again: (folder, name pattern)."""
+
+
+def remove_earlier_outputs(out_dir: Path) -> None:
+    """Remove what an earlier analysis into ``out_dir`` left that this one would not
+    overwrite (its events' snapshots, its masks, their scores), so that the folder
+    holds one run's outputs only. Other files are the user's, and stay."""
+    for folder, pattern in EARLIER_OUTPUTS:
+        for path in (out_dir / folder).glob(pattern):
+            if path.is_file():
+                path.unlink()
+        if folder != ".":
+            # Emptied, it goes too: a masks/ folder says the analysis wrote masks.
+            with contextlib.suppress(OSError):
+                (out_dir / folder).rmdir()
 
 
 @dataclass(frozen=True)

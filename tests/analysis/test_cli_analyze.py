@@ -317,3 +317,25 @@ def test_sensitivity_changes_what_is_detected(tmp_path, walker_video):
         assert result.returncode == 0, result.stderr
         counts[sensitivity] = len(read_tracks(out))
     assert counts["8"] > 20 and counts["200"] == 0
+
+
+def test_a_second_analysis_into_the_same_folder_leaves_none_of_the_first(
+    tmp_path, walker_video, box_truth
+):
+    out = tmp_path / "out"
+    assert vigil("analyze", walker_video, "--out", out, "--masks", "--quiet").returncode == 0
+    assert vigil("evaluate", out, "--truth", box_truth).returncode == 0
+    first = json.loads((out / "events.json").read_text())["events"]
+    assert first and list((out / "snapshots").glob("*.jpg")) and (out / "evaluation.json").exists()
+    (out / "snapshots" / "mine.jpg").write_bytes(b"the user's own")
+    (out / "notes.txt").write_text("the user's own")
+
+    # Nothing passes this sensitivity: no event, no snapshot, and no masks asked for.
+    result = vigil("analyze", walker_video, "--out", out, "--sensitivity", "200", "--quiet")
+    assert result.returncode == 0, result.stderr
+    assert json.loads((out / "events.json").read_text())["events"] == []
+    assert sorted(p.name for p in (out / "snapshots").iterdir()) == ["mine.jpg"]
+    assert not list((out / "differences").iterdir())
+    assert not (out / "masks").exists(), "masks of the first run, scored by vigil evaluate"
+    assert not (out / "evaluation.json").exists(), "the first run's scores"
+    assert (out / "notes.txt").read_text() == "the user's own"

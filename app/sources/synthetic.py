@@ -336,6 +336,15 @@ def in_view_scenes() -> dict[str, Scene]:
             frames=120,
             objects=(MovingObject((40, 120), (15.0, 0.0), (70, 35), 30, textured=False),),
         ),
+        # A white box crossing a plain grey wall: its own shift explains every change,
+        # as a moved view's would, yet it is the box that moves, not the camera.
+        "box-on-plain-wall": Scene(
+            name="box-on-plain-wall",
+            frames=30,
+            background_mean=60,
+            background_contrast=0.0,
+            objects=(MovingObject((0, 90), (60.0, 0.0), (60, 60), 220, textured=False),),
+        ),
         "two-ways-in-view": Scene(
             name="two-ways-in-view",
             frames=90,

@@ -49,7 +49,7 @@ import numpy as np
 
 from app.vision.noise import HALF_NORMAL_MEDIAN
 from app.vision.types import FloatImage, GrayImage
-from app.vision.view_shift import shift_explains
+from app.vision.view_shift import VIEW_SHIFT_REACH, shift_explains
 
 END_SAMPLES = 5
 """Samples at each end of the sampled stretch whose median shows that end."""
@@ -175,7 +175,8 @@ def _same_view(stack: np.ndarray, start: FloatImage, agreement: float) -> int:
     """How many samples, from the first, show the start's view: up to the last run of
     ``END_SAMPLES`` whose median differs from ``start`` by more than ``agreement`` over
     at most ``VIEW_CHANGED_SHARE`` of the picture and is not the start's picture shifted
-    (a light that switched, a camera that moved, stays so: the run is sought by halving)."""
+    by up to ``VIEW_SHIFT_REACH`` (a light that switched, a camera that moved, stays so:
+    the run is sought by halving)."""
 
     height, width = start.shape
     taper = (
@@ -194,7 +195,7 @@ def _same_view(stack: np.ndarray, start: FloatImage, agreement: float) -> int:
         # view shifted is sought, and taken where it explains the change.
         # Copies: OpenCV 5.0's phaseCorrelate applies the window to its inputs in place.
         (dx, dy), _ = cv2.phaseCorrelate(start.copy(), window.copy(), taper)
-        moved = math.hypot(dx, dy) >= CAMERA_MOVED_PX
+        moved = CAMERA_MOVED_PX <= math.hypot(dx, dy) <= VIEW_SHIFT_REACH * width
         return not (moved and shift_explains(start, window, dx, dy, agreement))
 
     if same(len(stack)):

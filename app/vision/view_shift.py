@@ -9,6 +9,11 @@ import math
 import cv2
 import numpy as np
 
+VIEW_SHIFT_REACH = 0.08
+"""The largest shift of a view taken for a camera that moved, as a share of the picture's
+width: a knock moves the view a few pixels; a larger shift between two pictures is a pan
+(not followed) or what an object's own move looks like on a plain scene."""
+
 SHIFT_EXPLAINS = 0.25
 """A shift explains a change when, with the reference moved by it, at most this share of
 the pixels that differed still differ (the objects in view)..."""
@@ -30,6 +35,12 @@ SHIFT_MAY_MISS = 0.25
 """The share of the parts with detail in which the shift need not show: what stays put
 in the picture while the view moves (a camera's time stamp over plain sky, the edge of
 its housing) may be all the detail of a part or two."""
+
+SHIFT_LEAST_DETAILED = 0.5
+"""The least share of the parts that must have detail for a shift to tell a moved view:
+with less, the detail may all be one object's on a plain scene (a white box crossing a
+grey wall), which its own shift explains as well as a moved view would, and an object
+moving is what a motion detector reports."""
 
 
 def shifted(
@@ -79,7 +90,7 @@ def shift_explains(
 def _shows_in_most_parts(moves: np.ndarray, shown: np.ndarray) -> bool:
     """Whether in all but ``SHIFT_MAY_MISS`` of the ``SHIFT_PARTS`` x ``SHIFT_PARTS``
     parts of the view where ``moves`` holds ``SHIFT_DETAIL`` of the pixels, ``shown``
-    holds ``SHIFT_SHOWS`` of them."""
+    holds ``SHIFT_SHOWS`` of them, and those parts are ``SHIFT_LEAST_DETAILED`` of all."""
     height, width = moves.shape
     rows = np.linspace(0, height, SHIFT_PARTS + 1).astype(int)
     cols = np.linspace(0, width, SHIFT_PARTS + 1).astype(int)
@@ -91,4 +102,6 @@ def _shows_in_most_parts(moves: np.ndarray, shown: np.ndarray) -> bool:
             if changed >= max(1.0, SHIFT_DETAIL * moves[part].size):
                 detailed += 1
                 missed += int(np.count_nonzero(shown[part]) < SHIFT_SHOWS * changed)
+    if detailed < SHIFT_LEAST_DETAILED * SHIFT_PARTS * SHIFT_PARTS:
+        return False
     return missed <= SHIFT_MAY_MISS * detailed

@@ -67,3 +67,13 @@ def test_a_time_stamp_that_stays_put_over_plain_sky_leaves_a_moved_view_explaine
     picture = moved_view(scene, 2.0, 0.0)
     picture[stamp] = scene[stamp]
     assert shift_explains(scene, picture, 2.0, 0.0, THRESHOLD)
+
+
+def test_a_box_that_moved_across_a_plain_wall_is_no_moved_view():
+    # All the detail is the box's: its own shift explains every change, as a moved
+    # view's would, but what moved is the box, and that is motion to report.
+    scene = np.full(SIZE, 60.0, np.float32)
+    scene[40:70, 50:80] = 220.0
+    picture = np.full(SIZE, 60.0, np.float32)
+    picture[40:70, 53:83] = 220.0
+    assert not shift_explains(scene, picture, 3.0, 0.0, THRESHOLD)

@@ -24,7 +24,9 @@ A running-average background (the classic of Motion and of OpenCV's
   with the scene and the frame is compared again, so what moves in it is
   still found and the scene is not reported as motion. A shaking camera is
   followed frame by frame. A slow pan, a turn about the lens axis or a zoom
-  is not followed (stale-region absorption handles them).
+  is not followed (stale-region absorption handles them), nor is a shift that
+  shows in too few parts of the view to tell (``view_shift``): on a plain wall,
+  an object's own move explains the change as well as a moved view would.
 * **A second background mode** — each pixel keeps an alternate value beside
   its main one (a cheap two-mode mixture, after Stauffer and Grimson, 1999):
   leaf against sky, an edge that a shaking camera moves back and forth. The
@@ -88,7 +90,7 @@ from app.vision.motion.adaptive_kernels import GUARD_REACH, LEARNING_REACH
 from app.vision.motion.base import MotionMethod, MotionResult
 from app.vision.scene_background import END_SAMPLES, SceneBackground
 from app.vision.types import FloatImage, GrayImage, Mask
-from app.vision.view_shift import shift_explains, shifted
+from app.vision.view_shift import VIEW_SHIFT_REACH, shift_explains, shifted
 
 MEAN_ABS_NOISE = math.sqrt(2.0 / math.pi)
 """E|X| / sigma for Gaussian X: the mean deviation that camera noise alone gives."""
@@ -125,9 +127,6 @@ SUDDEN_GROWTH = 2.0
 """How many times last frame's raw motion a frame must have for the change to count as
 sudden (with ``CAMERA_MOVE_SHARE``): what a knock does, where an object coming closer
 grows frame by frame."""
-
-CAMERA_MOVE_REACH = 0.08
-"""The largest shift of the view sought, as a share of the frame's width."""
 
 CAMERA_MATCH_WIDTH = 320
 """Pixels: a frame N >= 2 times this wide is reduced N times to seek the shift (the
@@ -466,7 +465,7 @@ class AdaptiveBackground(MotionMethod):
 
     def _scene_shift(self, gray: GrayImage, threshold: float) -> tuple[float, float] | None:
         """How far (x, y pixels) the scene moved in the picture, where the camera was
-        knocked (the other way): the shift, up to ``CAMERA_MOVE_REACH``, by which the
+        knocked (the other way): the shift, up to ``VIEW_SHIFT_REACH``, by which the
         background best matches the frame, provided that the background moved that far
         explains the change (``view_shift.shift_explains``). None where no shift does:
         something big stepped into view. A wide frame is matched at a reduced size
@@ -477,7 +476,7 @@ class AdaptiveBackground(MotionMethod):
         size = (width // reduce, height // reduce)
         background = cv2.resize(self._background, size, interpolation=cv2.INTER_AREA)
         picture = cv2.resize(frame, size, interpolation=cv2.INTER_AREA)
-        reach = max(2, round(CAMERA_MOVE_REACH * size[0]))
+        reach = max(2, round(VIEW_SHIFT_REACH * size[0]))
         if min(size) <= 4 * reach:
             return None
         # Where the frame's middle fits in the background: a squared difference per shift.

@@ -108,7 +108,8 @@ class _TrackSummary:
                 self.ranges_m.append(d.range_m)
 
     def as_dict(self) -> dict[str, Any]:
-        moving = self.speeds[1:] or self.speeds
+        # Over every row tracks.csv has for the track: a track is reported once confirmed,
+        # its velocity fitted to the sightings before, so its first row's speed is one.
         out: dict[str, Any] = {
             "track_id": self.track_id,
             "first_frame": self.first_frame,
@@ -116,11 +117,11 @@ class _TrackSummary:
             "frames": len(self.speeds),
             "duration_s": round(self.last_time_s - self.first_time_s, 4),
             "distance_px": round(self.distance_px, 2),
-            "mean_speed_px_s": round(statistics.fmean(moving), 3),
-            "max_speed_px_s": round(max(moving), 3),
+            "mean_speed_px_s": round(statistics.fmean(self.speeds), 3),
+            "max_speed_px_s": round(max(self.speeds), 3),
         }
         if self.speeds_m_s:
-            mean_m_s = statistics.fmean(self.speeds_m_s[1:] or self.speeds_m_s)
+            mean_m_s = statistics.fmean(self.speeds_m_s)
             out.update(
                 {
                     "distance_m": round(self.distance_m, 3),

@@ -54,6 +54,20 @@ def test_speed_is_measured_within_five_percent(analysed):
     assert statistics.median(settled) == pytest.approx(60.0, rel=0.05)
 
 
+def test_the_report_sums_up_each_track_as_tracks_csv_has_it(analysed):
+    report = json.loads((analysed / "report.json").read_text())
+    rows = read_tracks(analysed)
+    for track in report["tracks"]:
+        mine = [r for r in rows if int(r["track_id"]) == track["track_id"]]
+        speeds = [float(r["speed_px_s"]) for r in mine]
+        assert track["frames"] == len(mine)
+        assert track["first_frame"] == int(mine[0]["frame"])
+        assert track["max_speed_px_s"] == pytest.approx(max(speeds), abs=2e-3)
+        assert track["mean_speed_px_s"] == pytest.approx(statistics.fmean(speeds), abs=2e-3)
+        distance = sum(float(r["distance_px"]) for r in mine)
+        assert track["distance_px"] == pytest.approx(distance, abs=0.01 * len(mine))
+
+
 def test_events_json_and_one_snapshot_per_event(analysed):
     events = json.loads((analysed / "events.json").read_text())["events"]
     assert len(events) == 1

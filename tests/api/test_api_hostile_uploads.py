@@ -348,3 +348,18 @@ def test_decoder_crash_fails_that_analysis_alone(
         after = _upload(server, "next.avi", write_video(tmp_path / "n.avi", 30).read_bytes())
         assert _finished(server, after)["status"] == "done"
         _assert_still_serving(server, processed)
+
+
+def test_a_file_sent_without_a_file_name_is_refused_briefly(
+    serve: Callable[..., Running], tmp_path: Path
+) -> None:
+    # A multipart part with an empty file name reaches the app as a plain form field.
+    server = serve()
+    video = write_video(tmp_path / "clip.avi", frames=20).read_bytes()
+    response = _post(server, "", video)
+    assert response.status_code == 422
+    assert len(response.content) < 2000, "the file came back in the error"
+    (error,) = response.json()["detail"]
+    assert error["loc"] == ["body", "file"]
+    assert error["msg"] == "expected a file: a multipart part with a file name"
+    assert error["input"].endswith(" characters)")

@@ -79,13 +79,28 @@ class StrictJsonRoute(APIRoute):
         return strict_handler
 
 
+ECHO_LIMIT = 200
+"""Characters of a refused value echoed back in a 422: enough to recognise it, where a
+file sent as a plain form field (a part with no file name) would come back whole."""
+
+NOT_A_FILE = "Expected UploadFile"
+"""What FastAPI's message says when a file parameter got a plain form field."""
+
+
 async def validation_error(request: Request, exc: Exception) -> JSONResponse:
-    """FastAPI's 422, with every URL password in the echoed input masked: a refused
-    camera source must not carry its password back (to logs, proxies, browser tools)."""
+    """FastAPI's 422, with every URL password in the echoed input masked (a refused
+    camera source must not carry its password back to logs, proxies, browser tools),
+    long inputs cut to ``ECHO_LIMIT`` characters, and a file sent without a file name
+    said so."""
     assert isinstance(exc, RequestValidationError)  # What it is registered for.
-    return JSONResponse(
-        status_code=422, content={"detail": _masked(jsonable_encoder(exc.errors()))}
-    )
+    errors = _masked(jsonable_encoder(exc.errors()))
+    for error in errors:
+        if NOT_A_FILE in str(error.get("msg", "")):
+            error["msg"] = "expected a file: a multipart part with a file name"
+        echoed = error.get("input")
+        if isinstance(echoed, str) and len(echoed) > ECHO_LIMIT:
+            error["input"] = f"{echoed[:ECHO_LIMIT]}... ({len(echoed):,} characters)"
+    return JSONResponse(status_code=422, content={"detail": errors})
 
 
 def _masked(value: Any) -> Any:

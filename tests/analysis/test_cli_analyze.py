@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import csv
 import json
+import os
 import statistics
 from pathlib import Path
 
@@ -52,6 +53,15 @@ def test_speed_is_measured_within_five_percent(analysed):
     assert track["mean_speed_px_s"] == pytest.approx(60.0, rel=0.05)
     settled = [float(r["speed_px_s"]) for r in read_tracks(analysed)[8:-3]]
     assert statistics.median(settled) == pytest.approx(60.0, rel=0.05)
+
+
+def test_every_output_file_has_the_mode_a_new_file_gets(analysed):
+    umask = os.umask(0o022)
+    os.umask(umask)
+    files = [p for p in analysed.rglob("*") if p.is_file()]
+    assert {"report.json", "events.json", "tracks.csv", "annotated.avi"} <= {p.name for p in files}
+    modes = {p.relative_to(analysed).as_posix(): oct(p.stat().st_mode & 0o777) for p in files}
+    assert set(modes.values()) == {oct(0o666 & ~umask)}, modes
 
 
 def test_the_report_sums_up_each_track_as_tracks_csv_has_it(analysed):

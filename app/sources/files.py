@@ -41,6 +41,7 @@ are not frames)."""
 FFMPEG_LOG_QUIET = "-8"
 """``OPENCV_FFMPEG_LOGLEVEL`` for none of FFmpeg's own messages (AV_LOG_QUIET)."""
 _NUMBER = re.compile(r"(\d+)\D*$")
+_DIGITS = re.compile(r"(\d+)")
 
 
 def frame_number(path: Path) -> int | None:
@@ -234,11 +235,18 @@ def open_input(path: Path, fps: float | None = None, max_pixels: int | None = No
 
 
 def _list_images(folder: Path) -> list[Path]:
-    """The folder's image files, sorted by name."""
+    """The folder's image files, sorted by name, numbers in names by their value
+    (2.png before 10.png, as in000002.jpg before in000010.jpg)."""
     try:
-        return sorted(p for p in folder.iterdir() if p.suffix.lower() in IMAGE_SUFFIXES)
+        images = [p for p in folder.iterdir() if p.suffix.lower() in IMAGE_SUFFIXES]
     except PermissionError:
         raise InputError(f"folder is not readable: {folder}") from None
+    return sorted(images, key=_natural_order)
+
+
+def _natural_order(path: Path) -> list[str | int]:
+    # Text and numbers alternate, text first (maybe empty), so like parts are compared.
+    return [int(part) if index % 2 else part for index, part in enumerate(_DIGITS.split(path.name))]
 
 
 def _open_folder(folder: Path, fps: float | None, max_pixels: int | None) -> VideoInput:

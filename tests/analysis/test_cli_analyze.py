@@ -235,11 +235,13 @@ def test_truth_of_frames_the_input_lacks_is_warned_of(tmp_path, walker_video):
     assert report["evaluation"]["frames_scored"] == 0
 
 
-def test_folder_of_frames_sorted_by_name(tmp_path):
+@pytest.mark.parametrize("name", ["img{:04d}.png", "{}.png", "frame-{}.jpg"])
+def test_folder_of_frames_sorted_by_name(tmp_path, name):
+    # Numbers in names count by their value: 2.png comes before 10.png.
     folder = tmp_path / "frames"
     folder.mkdir()
     for i in range(40):
-        cv2.imwrite(str(folder / f"img{i:04d}.png"), WALKER.frame(i))
+        cv2.imwrite(str(folder / name.format(i)), WALKER.frame(i))
     result = vigil("analyze", folder, "--out", tmp_path / "out", "--fps", "15", "--quiet")
     assert result.returncode == 0, result.stderr
     report = json.loads((tmp_path / "out" / "report.json").read_text())

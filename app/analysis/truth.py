@@ -201,7 +201,9 @@ def _load_box_json(path: Path) -> Truth:
             frame = int(key)
         except (TypeError, ValueError):
             raise TruthError(f"{path}: frame {key!r} is not a frame number") from None
-        if frame < 0 or not isinstance(boxes, list):
+        if frame < 0:
+            raise TruthError(f"{path}: frame {key!r} is below 0 (frames count from 0)")
+        if not isinstance(boxes, list):
             raise TruthError(f"{path}: frame {key!r} needs a list of boxes")
         truth.boxes[frame] = [_box(b, path, frame) for b in boxes]
     return truth

@@ -73,7 +73,8 @@ def test_box_json_in_both_documented_shapes(tmp_path, data):
         ('{"frames": {"x": []}}', "not a frame number"),
         ('{"frames": {"0": [[1, 2, 0, 4]]}}', "no area"),
         ('{"frames": {"0": [["a", 2, 3, 4]]}}', "a box is"),
-        ('{"frames": {"-1": []}}', "needs a list"),
+        ('{"frames": {"-1": [[0, 0, 5, 5]]}}', "below 0"),
+        ('{"frames": {"0": "0, 0, 5, 5"}}', "needs a list of boxes"),
     ],
 )
 def test_bad_box_json_gives_a_readable_error(tmp_path, content, message):

@@ -65,6 +65,13 @@ def _fps(value: str) -> float:
     return number
 
 
+def _path(value: str) -> Path:
+    # An empty one is the current folder to Path: outputs would land among the user's files.
+    if not value.strip():
+        raise argparse.ArgumentTypeError("an empty path")
+    return Path(value)
+
+
 MIN_DETECT_WIDTH = 32
 """Narrower than this, the detector's morphology and min area leave nothing to detect."""
 
@@ -105,15 +112,15 @@ def build_parser() -> argparse.ArgumentParser:
     serve.add_argument("--host", default=None, help="address to bind (default 127.0.0.1)")
     serve.add_argument("--port", type=_port, default=None, help="port (default 8000)")
     serve.add_argument(
-        "--data", type=Path, default=None, help="folder for the database and snapshots"
+        "--data", type=_path, default=None, help="folder for the database and snapshots"
     )
 
     analyze = commands.add_parser("analyze", help="analyse a recorded video offline")
     analyze.add_argument(
-        "input", type=Path, help="a video file or a folder of frames (sorted by name)"
+        "input", type=_path, help="a video file or a folder of frames (by name, 2 before 10)"
     )
     analyze.add_argument(
-        "--out", type=Path, default=None, help="output folder (default: ./vigil-out/<input name>)"
+        "--out", type=_path, default=None, help="output folder (default: ./vigil-out/<input name>)"
     )
     analyze.add_argument(
         "--method",
@@ -139,13 +146,13 @@ def build_parser() -> argparse.ArgumentParser:
     analyze.add_argument("--masks", action="store_true", help="also write masks/NNNNNN.png")
     analyze.add_argument(
         "--truth",
-        type=Path,
+        type=_path,
         default=None,
         help="ground truth: a CDnet folder, a mask image or a box JSON file",
     )
     analyze.add_argument(
         "--calibration",
-        type=Path,
+        type=_path,
         default=None,
         help="camera calibration JSON (docs/calibration.md): adds metres and km/h",
     )
@@ -181,9 +188,9 @@ def build_parser() -> argparse.ArgumentParser:
     analyze.add_argument("--quiet", action="store_true", help="no progress bar and no summary")
 
     evaluate = commands.add_parser("evaluate", help="score an analyze output folder against truth")
-    evaluate.add_argument("out", type=Path, help="the folder `vigil analyze` wrote")
+    evaluate.add_argument("out", type=_path, help="the folder `vigil analyze` wrote")
     evaluate.add_argument(
-        "--truth", type=Path, required=True, help="a CDnet folder, a mask image or a box JSON file"
+        "--truth", type=_path, required=True, help="a CDnet folder, a mask image or a box JSON file"
     )
     commands.add_parser(
         "hash-password",
@@ -230,6 +237,8 @@ def _analyze(args: argparse.Namespace) -> int:
     from app.vision.pipeline import PipelineConfig
 
     out = args.out or Path("vigil-out") / (args.input.stem or "input")
+    if out.exists() and not out.is_dir():
+        return _fail("analyze", f"the output folder is a file: {out}")
     try:
         calibration = None
         if args.calibration is not None:

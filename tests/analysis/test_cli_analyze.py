@@ -365,3 +365,16 @@ def test_a_second_analysis_into_the_same_folder_leaves_none_of_the_first(
     assert not (out / "masks").exists(), "masks of the first run, scored by vigil evaluate"
     assert not (out / "evaluation.json").exists(), "the first run's scores"
     assert (out / "notes.txt").read_text() == "the user's own"
+
+
+def test_an_empty_path_or_a_file_for_the_output_folder_exits_2(tmp_path, walker_video):
+    # An empty path is the current folder to Path: the outputs would land among its files.
+    for args in (("", "--out", tmp_path / "o"), (walker_video, "--out", "")):
+        result = vigil("analyze", *args, "--quiet", cwd=tmp_path)
+        assert result.returncode == 2 and "an empty path" in result.stderr, result.stderr
+    assert sorted(p.name for p in tmp_path.iterdir()) == [], "it wrote into the current folder"
+    (tmp_path / "afile").write_text("mine")
+    result = vigil("analyze", walker_video, "--out", tmp_path / "afile", "--quiet")
+    assert result.returncode == 2
+    assert result.stderr.strip().endswith(f"the output folder is a file: {tmp_path / 'afile'}")
+    assert (tmp_path / "afile").read_text() == "mine"

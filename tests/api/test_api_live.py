@@ -170,6 +170,10 @@ def test_snapshots_listing_zip_and_delete(
     assert cv2.imdecode(np.frombuffer(first, np.uint8), cv2.IMREAD_COLOR) is not None
     picked = httpx.get(f"{base}/api/snapshots.zip", params={"ids": str(listed[0]["id"])})
     assert len(zipfile.ZipFile(io.BytesIO(picked.content)).namelist()) == 1
+    two = [str(s["id"]) for s in listed[:2]]
+    for params in ({"ids": ",".join(two)}, [("ids", two[0]), ("ids", two[1])]):
+        picked = httpx.get(f"{base}/api/snapshots.zip", params=params)
+        assert len(zipfile.ZipFile(io.BytesIO(picked.content)).namelist()) == 2, params
 
     ids = [s["id"] for s in listed]
     deleted = httpx.post(f"{base}/api/snapshots/delete", json={"ids": ids}).json()

@@ -24,8 +24,10 @@ def _view(row: dict[str, Any]) -> dict[str, Any]:
     return out
 
 
-def _ids(text: str | None) -> list[int] | None:
-    if text is None or text == "":
+def _ids(given: list[str] | None) -> list[int] | None:
+    """``ids=1,2`` and ``ids=1&ids=2`` alike (and both at once)."""
+    text = ",".join(given or [])
+    if not text.strip(","):
         return None
     try:
         ids = [int(part) for part in text.split(",") if part.strip()]
@@ -57,7 +59,7 @@ def snapshots_zip(
     since: TimeFilter = None,
     until: TimeFilter = None,
     kind: str | None = None,
-    ids: str | None = None,
+    ids: Annotated[list[str] | None, Query()] = None,
     limit: int = Query(10000, ge=1, le=100000),
 ) -> StreamingResponse:
     """The selected snapshots as one zip, streamed as it is made."""

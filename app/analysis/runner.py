@@ -425,5 +425,6 @@ def _settings(
     settings["threshold_in_force"] = round(pipeline.method.threshold, 2)
     settings["calibrated"] = options.calibration is not None
     settings["quiet_s"] = options.quiet_s
-    settings["background_scan"] = options.background_scan
+    # In force: a method that cannot start from a scene is not scanned for.
+    settings["background_scan"] = options.background_scan and pipeline.starts_from_scene
     return settings

@@ -73,6 +73,7 @@ def test_a_method_that_cannot_start_from_a_scene_is_not_scanned_for(tmp_path):
     assert run.returncode == 0, run.stderr
     report = json.loads((tmp_path / "out" / "report.json").read_text())
     assert report["background_scan"] is None
+    assert report["settings"]["background_scan"] is False
 
 
 def test_vigil_analyze_scans_first_and_reports_it(tmp_path):

@@ -412,7 +412,11 @@ class CameraProcess:
     def _forward(self, generation: int, message: dict[str, Any]) -> None:
         camera = self.cameras.get(message.get("camera_id", -1))
         if camera is None or camera.generation != generation:
-            return  # Removed or replaced meanwhile: its last words concern nobody.
+            # Removed or replaced meanwhile: its last words concern nobody, but for the
+            # end of an event it raised, which clients showed and wait to see end.
+            if message.get("type") == "motion_end":
+                self.bus.publish(message)
+            return
         if message.get("type") == "status":
             message = camera.reported(message)
         self.bus.publish(message)

@@ -61,6 +61,25 @@ def test_activate_gives_alarm_snapshot_and_motion_end(
     assert events[-1]["id"] == alarm["event_id"] and events[-1]["ended_at"] is not None
 
 
+def test_deleting_a_camera_mid_event_ends_the_event_for_clients(
+    serve: Callable[..., Running], motion_video: Path
+) -> None:
+    server = serve()
+    cam = _add(server, motion_video)
+    with WsClient(server.ws) as ws:
+        httpx.post(f"{server.base}/api/cameras/{cam}/activate").raise_for_status()
+        (alarm,) = ws.wait("alarm", 15, camera_id=cam)[:1]
+        assert httpx.delete(f"{server.base}/api/cameras/{cam}").status_code == 204
+        ended = ws.wait("motion_end", 10, camera_id=cam)[0]
+        assert ended["event_id"] == alarm["event_id"]
+    (event,) = [
+        e
+        for e in httpx.get(f"{server.base}/api/events", params={"camera_id": cam}).json()
+        if e["id"] == alarm["event_id"]
+    ]
+    assert event["ended_at"] is not None
+
+
 def test_mjpeg_frames_decode_and_histogram(
     serve: Callable[..., Running], motion_video: Path
 ) -> None:

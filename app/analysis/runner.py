@@ -160,28 +160,27 @@ def analyze(
     return _Analysis(source, out_dir, options, truth, progress, on_frame).run()
 
 
-EARLIER_OUTPUTS = (
+EARLIER_PICTURES = (
     ("snapshots", "event-[0-9][0-9][0-9][0-9]*.jpg"),
     ("differences", "event-[0-9][0-9][0-9][0-9]*.jpg"),
     ("masks", "[0-9][0-9][0-9][0-9][0-9][0-9]*.png"),
-    (".", "evaluation.json"),
 )
-"""Files an earlier analysis (or ``vigil evaluate``) wrote into an output folder that
-this one may not write again: (folder, name pattern)."""
+"""Pictures an earlier analysis wrote into an output folder that this one may not write
+again: (folder, name pattern)."""
 
 
 def remove_earlier_outputs(out_dir: Path) -> None:
     """Remove what an earlier analysis into ``out_dir`` left that this one would not
-    overwrite (its events' snapshots, its masks, their scores), so that the folder
-    holds one run's outputs only. Other files are the user's, and stay."""
-    for folder, pattern in EARLIER_OUTPUTS:
+    overwrite (its events' snapshots, its masks, their scores by ``vigil evaluate``), so
+    that the folder holds one run's outputs only. Other files are the user's, and stay."""
+    for folder, pattern in EARLIER_PICTURES:
         for path in (out_dir / folder).glob(pattern):
             if path.is_file():
                 path.unlink()
-        if folder != ".":
-            # Emptied, it goes too: a masks/ folder says the analysis wrote masks.
-            with contextlib.suppress(OSError):
-                (out_dir / folder).rmdir()
+        # Emptied, it goes too: a masks/ folder says the analysis wrote masks.
+        with contextlib.suppress(OSError):
+            (out_dir / folder).rmdir()
+    (out_dir / "evaluation.json").unlink(missing_ok=True)
 
 
 @dataclass(frozen=True)

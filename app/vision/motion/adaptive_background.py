@@ -33,7 +33,10 @@ A running-average background (the classic of Motion and of OpenCV's
   alternate counts as background once it *recurs*: its weight grows only on
   frames that match it right after a background frame, so a stopped object,
   which stays foreground, never earns one (still-region absorption handles
-  it instead).
+  it instead). A value far from both modes takes the place of a weak
+  alternate, but gets a fresh weight only right after a background frame too:
+  a passing object's inside, replacing it frame after frame, leaves it to
+  fade.
 * **Per-pixel variability** — each pixel keeps its mean deviation from the
   background, learned from background frames and from frames where its
   detection flips (the blink of SuBSENSE, St-Charles et al., 2015), clipped

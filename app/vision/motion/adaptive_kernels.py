@@ -528,10 +528,13 @@ def _learn_row(
         )
         target = full if matched else none
         new_weight = old_weight + mr * (target - old_weight)
-        # A value far from both modes replaces a weak alternate.
+        # A value far from both modes replaces a weak alternate. Only a sighting right
+        # after a background frame seeds its weight: an object's changing inside, which
+        # replaces it frame after frame, would otherwise keep it fresh while it passes.
         unmatched = (not established) & (min(main_difference, other_difference) > level)
+        sighted = seed if previous_mask[y, x] == 0 else min(seed, new_weight)
         alternate[y, x] = shade if unmatched else other
-        weight[y, x] = seed if unmatched else new_weight
+        weight[y, x] = sighted if unmatched else new_weight
         change = abs(shade - np.float32(previous_gray[y, x]))
         changing_out[x] = np.uint8(255) if change > level else np.uint8(0)
         mask_out[y, x] = np.uint8(255) if is_moving else np.uint8(0)

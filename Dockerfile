@@ -20,7 +20,7 @@ RUN pip install . \
 USER 10001
 # The detection kernels compiled into the image, so that a container detects from its
 # first frame; on a CPU unlike the build machine's they compile (about 10 s) on first use.
-RUN python -P -c "from app.vision.motion.adaptive_background import warm_up; warm_up()"
+RUN python -P -c "from app.vision.pipeline import warm_up; warm_up()"
 VOLUME ["/data"]
 EXPOSE 8000
 HEALTHCHECK --interval=30s --timeout=5s CMD ["python", "-c", "import urllib.request; urllib.request.urlopen('http://127.0.0.1:8000/api/health', timeout=4)"]

@@ -19,10 +19,20 @@ $(VENV)/.installed-dev: pyproject.toml | $(BIN)/python
 	$(BIN)/python -m pip install --quiet -e '.[dev]'
 	touch $@ $(VENV)/.installed-run
 
-run: $(VENV)/.installed-run
+# The detection kernels, compiled into Numba's cache beside the code (about ten seconds,
+# again whenever their code changes): otherwise the first camera activated after a start
+# waits for them, and its first alarm comes seconds late.
+KERNEL_SOURCES := app/vision/compiled.py app/vision/noise.py app/vision/preprocess.py \
+	app/vision/motion/adaptive_kernels.py
+
+$(VENV)/.kernels: $(VENV)/.installed-run $(KERNEL_SOURCES)
+	$(BIN)/python -P -c "from app.vision.pipeline import warm_up; warm_up()"
+	touch $@
+
+run: $(VENV)/.installed-run $(VENV)/.kernels
 	$(BIN)/vigil serve --host $(HOST) --port $(PORT)
 
-test: $(VENV)/.installed-dev
+test: $(VENV)/.installed-dev $(VENV)/.kernels
 	$(BIN)/python -m pytest
 
 lint: $(VENV)/.installed-dev

@@ -32,6 +32,8 @@ import cv2
 import numpy as np
 import websockets
 
+from app.vision.pipeline import warm_up
+
 REPO_ROOT = Path(__file__).resolve().parent.parent
 WIDTH, HEIGHT = 640, 480
 QUIET_S = 0.5
@@ -168,6 +170,9 @@ def main() -> int:
     parser.add_argument("--fps", type=float, default=25.0, help="camera frame rate (default 25)")
     args = parser.parse_args()
 
+    # The detection kernels compiled (or found in the cache) first, as `make run` does: a
+    # server that compiles them on start detects seconds late until it has.
+    warm_up()
     scene = Scene()
     camera = mjpeg_server(scene, args.fps)
     port = free_port()

@@ -68,7 +68,8 @@ A running-average background (the classic of Motion and of OpenCV's
   on, a shadow fell), or a ghost (across the region's border the frame steps
   less than the background does). An object that stopped (a person waiting)
   stays for ``absorb_after`` frames (5 s at 25 fps), kept whole, out of the
-  ghost step's reach, where its outline is clearly an object's.
+  ghost step's reach, where its outline is clearly an object's, and from then
+  on for as long as it stays still.
 
 The per-pixel work is compiled (``adaptive_kernels``): most frames take one
 call, neighbourhood steps included; this class decides what the rare frames

@@ -726,7 +726,8 @@ def age_still_regions(
     pixels). Any other waits ``absorb_after`` frames: an object that stopped. Where
     its border is clearly an object's (the frame steps across it ``clear_edge`` times
     as much as the background does), its pixels are marked in ``stopped_out``, to be
-    kept whole meanwhile (every other pixel is cleared).
+    kept whole meanwhile, and so is a stale region that held marked pixels (every other
+    pixel is cleared).
     """
     rows, cols = labels.shape
     stale = np.ones(regions, np.bool_)
@@ -769,9 +770,22 @@ def age_still_regions(
                     if 0 <= ny < rows and 0 <= nx < cols and labels[ny, nx] != label:
                         sums[at, 5] += abs(np.float64(gray[top + ny, left + nx]) - seen)
                         sums[at, 6] += abs(np.float64(background[top + ny, left + nx]) - model)
+    # A region kept whole at the last check stays kept while it is stale: the ghost step
+    # may have eaten some of its rim before then, and the steps across that rim, the
+    # scene's grey outside in the background against the object's, would otherwise
+    # make it look like a ghost, then eat it all.
+    was_kept = np.zeros(regions, np.bool_)
+    for y in range(rows):
+        for x in range(cols):
+            if stopped_out[top + y, left + x] != 0:
+                was_kept[labels[y, x]] = True
     after = np.full(regions, relit_after, np.int64)
     kept = np.zeros(regions, np.bool_)
     for label in range(1, regions):
+        if stale[label] and was_kept[label]:
+            after[label] = absorb_after
+            kept[label] = True
+            continue
         at = row[label]
         if at < 0:
             continue

@@ -44,6 +44,13 @@ log = logging.getLogger("vigil.camera")
 STABLE_FRAMES = 100
 """A worker that handled this many frames since its last restart was not failing in a row."""
 
+DETECTION_WARMING = threading.Event()
+"""Set while this process compiles the detection kernels, or loads them from the cache
+(``CameraHost``'s warm-up): an activated camera waits for them, its picture going on
+and its reason saying why, rather than stopping every frame in the first call."""
+
+PREPARING = "preparing detection: compiling it (about 10 s on a first start)"
+
 PLAIN_SLEEP_S = 0.1
 """Waits for the next frame up to this long are a plain sleep, about 40 us of CPU cheaper
 to wake from than an Event's wait (measured here); a stop is then seen when it ends (this
@@ -314,7 +321,10 @@ class CameraWorker:
         old = self._config
         if pending:  # Rarely: no copy on the frames without.
             self._config = {**old, **pending}
-        if want_active and self._pipeline is None:
+        waiting = want_active and self._pipeline is None and DETECTION_WARMING.is_set()
+        if waiting != (self.reason == PREPARING):
+            self._set_state("live", PREPARING if waiting else "")
+        if want_active and self._pipeline is None and not waiting:
             self._pipeline = self._new_pipeline(fps)
             self._start_from_glances(self._pipeline)
             self._alarms = AlarmLogic(self.settings.quiet_s, self.settings.alarm_gap_s)

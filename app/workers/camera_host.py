@@ -36,7 +36,12 @@ from app.storage.files import SnapshotStore
 from app.vision.pipeline import warm_up
 from app.workers.analysis import signal_label
 from app.workers.bus import EventBus
-from app.workers.camera import CameraWorker, motion_end_message, status_fields
+from app.workers.camera import (
+    DETECTION_WARMING,
+    CameraWorker,
+    motion_end_message,
+    status_fields,
+)
 from app.workers.hub import FrameHub, Kind, Picture, SentFrame
 
 log = logging.getLogger("vigil.cameras")
@@ -166,8 +171,16 @@ def run_cameras(conn: Connection, settings: Settings) -> None:
     if settings.opencv_threads:
         cv2.setNumThreads(settings.opencv_threads)
     # A process starts with its first camera (CameraProcess.add): load the detection
-    # kernels now, beside it, so its first activated frame does not wait for them.
-    threading.Thread(target=warm_up, name="warm-up", daemon=True).start()
+    # kernels now, beside it; a camera activated meanwhile waits for them.
+    DETECTION_WARMING.set()
+
+    def warm() -> None:
+        try:
+            warm_up()
+        finally:
+            DETECTION_WARMING.clear()
+
+    threading.Thread(target=warm, name="warm-up", daemon=True).start()
     link = _Link(conn)
     db = Database(settings.db_path)
     snapshots = SnapshotStore(settings.snapshots_dir)

@@ -9,7 +9,7 @@ from typing import Any
 
 from app.sources.synthetic import MovingObject, Scene
 from app.storage import Database
-from app.workers.camera import PLAIN_SLEEP_S, CameraWorker
+from app.workers.camera import DETECTION_WARMING, PLAIN_SLEEP_S, PREPARING, CameraWorker
 from app.workers.hub import viewer_jpeg
 from tests.api.vigil_livekit import FPS, MjpegCamera, wait_for, write_video
 from tests.conftest import write_scene_video
@@ -139,6 +139,36 @@ def test_settings_apply_on_next_frame(parts: dict[str, Any], tmp_path: Path) -> 
         worker.set_active(False)
         wait_for(lambda: worker._pipeline is None, 5, "detection to stop")
     finally:
+        worker.request_stop()
+        worker.join(5)
+
+
+def test_a_camera_activated_while_the_kernels_compile_says_so_and_its_picture_goes_on(
+    parts: dict[str, Any], tmp_path: Path
+) -> None:
+    # A first start compiles the kernels for seconds; a camera that ran into them froze
+    # its picture meanwhile, and nothing said why detection had not begun.
+    worker = make_worker(parts, str(write_video(tmp_path / "v.avi")), active=True)
+    DETECTION_WARMING.set()
+    try:
+        worker.start()
+        wait_for(lambda: worker.reason == PREPARING, 10, "the reason")
+        shown = worker.frames
+        wait_for(lambda: worker.frames >= shown + 10, 10, "the picture going on")
+        assert worker.state == "live" and worker.processed == 0
+        DETECTION_WARMING.clear()
+        wait_for(lambda: worker.processed > 3, 10, "detection once they are ready")
+        assert worker.reason == ""
+        # Stopped while it waited: nothing is left to say.
+        worker.set_active(False)
+        wait_for(lambda: worker._pipeline is None, 5, "detection to stop")
+        DETECTION_WARMING.set()
+        worker.set_active(True)
+        wait_for(lambda: worker.reason == PREPARING, 10, "the reason again")
+        worker.set_active(False)
+        wait_for(lambda: worker.reason == "", 10, "the reason gone")
+    finally:
+        DETECTION_WARMING.clear()
         worker.request_stop()
         worker.join(5)
 

@@ -5,6 +5,9 @@ BIN := $(VENV)/bin
 HOST ?= 127.0.0.1
 PORT ?= 8000
 
+# One install at a time: `make -j test` would otherwise run two pip installs into the venv.
+.NOTPARALLEL:
+
 .PHONY: run test lint audit audit-code audit-deps format typecheck bench accuracy clean
 
 $(BIN)/python:

@@ -31,10 +31,10 @@ from pathlib import Path
 import cv2
 import numpy as np
 import websockets
+from _common import REPO_ROOT
 
 from app.vision.pipeline import warm_up
 
-REPO_ROOT = Path(__file__).resolve().parent.parent
 WIDTH, HEIGHT = 640, 480
 QUIET_S = 0.5
 

@@ -49,7 +49,7 @@ DETECTION_WARMING = threading.Event()
 (``CameraHost``'s warm-up): an activated camera waits for them, its picture going on
 and its reason saying why, rather than stopping every frame in the first call."""
 
-PREPARING = "preparing detection: compiling it (about 10 s on a first start)"
+PREPARING = "preparing detection (on a first start it compiles, about 10 s)"
 
 PLAIN_SLEEP_S = 0.1
 """Waits for the next frame up to this long are a plain sleep, about 40 us of CPU cheaper

@@ -177,6 +177,8 @@ def run_cameras(conn: Connection, settings: Settings) -> None:
     def warm() -> None:
         try:
             warm_up()
+        except Exception:  # Cameras then compile in their first call, as without it.
+            log.exception("warming up the detection kernels failed")
         finally:
             DETECTION_WARMING.clear()
 

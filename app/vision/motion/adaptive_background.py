@@ -68,8 +68,8 @@ A running-average background (the classic of Motion and of OpenCV's
   on, a shadow fell), or a ghost (across the region's border the frame steps
   less than the background does). An object that stopped (a person waiting)
   stays for ``absorb_after`` frames (5 s at 25 fps), kept whole, out of the
-  ghost step's reach, where its outline is clearly an object's, and from then
-  on for as long as it stays still.
+  ghost step's reach, where its outline is clearly an object's, and stays kept
+  (until ``absorb_after``) while it stays still.
 
 The per-pixel work is compiled (``adaptive_kernels``): most frames take one
 call, neighbourhood steps included; this class decides what the rare frames
@@ -190,8 +190,9 @@ class AdaptiveBackground(MotionMethod):
         self.noise.k = k
         self.learning_rate = learning_rate
         self.light_switch_fraction = light_switch_fraction
-        # A new alternate starts at mode_rate, below mode_weight, so it takes
-        # a second sighting to count: with the defaults, within 17 frames.
+        # A new alternate seen right after a background frame starts at mode_rate,
+        # below mode_weight, so it takes a second sighting to count: with the
+        # defaults, within 17 frames.
         self.mode_rate = mode_rate
         self.mode_weight = mode_weight
         self.deviation_rate = deviation_rate
@@ -523,7 +524,7 @@ class AdaptiveBackground(MotionMethod):
         )
         self._previous_mask = moved(self._previous_mask, smooth=False)
         self._previous_moving = cv2.countNonZero(self._previous_mask)
-        for plane in (kernels.SETTLED, self._raw_plane):
+        for plane in (kernels.SETTLED, kernels.STOPPED, self._raw_plane):
             self._state[plane] = moved(self._state[plane], smooth=False)
         self._still_frames = moved(self._still_frames, smooth=False)
 

@@ -478,11 +478,12 @@ def _learn_row(
     ``near_motion`` that do not flip at the near-motion rate; a still pixel
     teaches its nearer mode; an alternate that matches right after a background
     frame gains weight, and a value far from both modes replaces a weak
-    alternate. Counts, per pixel, the frames it has been still (``settled``, at
-    most 255), and writes, for the ghost step, the pixels that changed since the
-    previous frame (``changing_out``) and the background rounded to grey levels
-    (``rounded_out``). ``per_pixel``, ``grown_strong``, ``solid``, ``near_motion``
-    and the two outs are rows; the rest whole images.
+    alternate (with a fresh weight only right after a background frame). Counts,
+    per pixel, the frames it has been still (``settled``, at most 255), and writes,
+    for the ghost step, the pixels that changed since the previous frame
+    (``changing_out``) and the background rounded to grey levels (``rounded_out``).
+    ``per_pixel``, ``grown_strong``, ``solid``, ``near_motion`` and the two outs are
+    rows; the rest whole images.
     """
     gain = rates[GAIN]
     level = rates[LEVEL]
@@ -726,8 +727,8 @@ def age_still_regions(
     pixels). Any other waits ``absorb_after`` frames: an object that stopped. Where
     its border is clearly an object's (the frame steps across it ``clear_edge`` times
     as much as the background does), its pixels are marked in ``stopped_out``, to be
-    kept whole meanwhile, and so is a stale region that held marked pixels (every other
-    pixel is cleared).
+    kept whole meanwhile, and so is a stale region that held marked pixels, unless it
+    is too small to tell (every other pixel is cleared).
     """
     rows, cols = labels.shape
     stale = np.ones(regions, np.bool_)
@@ -782,7 +783,7 @@ def age_still_regions(
     after = np.full(regions, relit_after, np.int64)
     kept = np.zeros(regions, np.bool_)
     for label in range(1, regions):
-        if stale[label] and was_kept[label]:
+        if stale[label] and was_kept[label] and pixels[label] >= least_pattern:
             after[label] = absorb_after
             kept[label] = True
             continue

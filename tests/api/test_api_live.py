@@ -193,6 +193,12 @@ def test_snapshots_listing_zip_and_delete(
     for params in ({"ids": ",".join(two)}, [("ids", two[0]), ("ids", two[1])]):
         picked = httpx.get(f"{base}/api/snapshots.zip", params=params)
         assert len(zipfile.ZipFile(io.BytesIO(picked.content)).namelist()) == 2, params
+    # A selection of none is an empty zip, not the whole gallery.
+    for empty in ("", ",", " "):
+        picked = httpx.get(f"{base}/api/snapshots.zip", params={"ids": empty})
+        assert zipfile.ZipFile(io.BytesIO(picked.content)).namelist() == [], repr(empty)
+    refused = httpx.get(f"{base}/api/snapshots.zip", params={"ids": "-1"})
+    assert refused.status_code == 422 and "from 0 to" in refused.json()["detail"]
 
     ids = [s["id"] for s in listed]
     deleted = httpx.post(f"{base}/api/snapshots/delete", json={"ids": ids}).json()

@@ -25,16 +25,19 @@ def _view(row: dict[str, Any]) -> dict[str, Any]:
 
 
 def _ids(given: list[str] | None) -> list[int] | None:
-    """``ids=1,2`` and ``ids=1&ids=2`` alike (and both at once)."""
-    text = ",".join(given or [])
-    if not text.strip(","):
+    """``ids=1,2`` and ``ids=1&ids=2`` alike (and both at once). No ``ids``: no selection
+    by number; an ``ids`` that names none (``ids=``) selects nothing, not everything."""
+    if given is None:
         return None
     try:
-        ids = [int(part) for part in text.split(",") if part.strip()]
+        ids = [int(part) for part in ",".join(given).split(",") if part.strip()]
     except ValueError:
         raise HTTPException(422, "ids must be a comma-separated list of numbers") from None
-    if len(ids) > MAX_IDS or not all(0 <= i <= MAX_ID for i in ids):
+    if len(ids) > MAX_IDS:
         raise HTTPException(422, f"ids must be at most {MAX_IDS:,} snapshot numbers")
+    wrong = next((i for i in ids if not 0 <= i <= MAX_ID), None)
+    if wrong is not None:
+        raise HTTPException(422, f"ids are snapshot numbers from 0 to {MAX_ID:,}, not {wrong}")
     return ids
 
 

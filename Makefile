@@ -32,7 +32,7 @@ $(VENV)/.kernels: $(VENV)/.installed-run $(KERNEL_SOURCES)
 	$(BIN)/python -P -c "from app.vision.pipeline import warm_up; warm_up()"
 	touch $@
 
-run: $(VENV)/.installed-run $(VENV)/.kernels
+run: $(VENV)/.kernels
 	$(BIN)/vigil serve --host $(HOST) --port $(PORT)
 
 test: $(VENV)/.installed-dev $(VENV)/.kernels

@@ -324,7 +324,9 @@ class CameraWorker:
         waiting = want_active and self._pipeline is None and DETECTION_WARMING.is_set()
         if waiting != (self.reason == PREPARING):
             self._set_state("live", PREPARING if waiting else "")
-        if want_active and self._pipeline is None and not waiting:
+        if waiting:
+            return
+        if want_active and self._pipeline is None:
             self._pipeline = self._new_pipeline(fps)
             self._start_from_glances(self._pipeline)
             self._alarms = AlarmLogic(self.settings.quiet_s, self.settings.alarm_gap_s)

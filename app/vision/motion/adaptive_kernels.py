@@ -733,23 +733,32 @@ def age_still_regions(
     rows, cols = labels.shape
     stale = np.ones(regions, np.bool_)
     stale[0] = False
+    # A region kept whole at the last check stays kept while it is stale: the ghost step
+    # may have eaten some of its rim before then, and the steps across that rim, the
+    # scene's grey outside in the background against the object's, would otherwise
+    # make it look like a ghost, then eat it all.
+    was_kept = np.zeros(regions, np.bool_)
     for y in range(rows):
         for x in range(cols):
             if stirring[top + y, left + x] != 0:
                 stale[labels[y, x]] = False
+            if stopped_out[top + y, left + x] != 0:
+                was_kept[labels[y, x]] = True
     # Most regions on most checks are objects on the move, and need nothing more. The
-    # stale ones large enough to judge get a row of sums: frame, background, their
-    # squares and products, and the steps of frame and background across the border.
+    # stale ones large enough to judge, and not kept already, get a row of sums: frame,
+    # background, their squares and products, and the steps of frame and background
+    # across the border.
     pixels = np.zeros(regions, np.int64)
     if stale.any():
         for y in range(rows):
             for x in range(cols):
                 if stale[labels[y, x]]:
                     pixels[labels[y, x]] += 1
+    kept_again = (pixels >= least_pattern) & was_kept
     row = np.full(regions, -1, np.int64)
     judged = 0
     for label in range(1, regions):
-        if pixels[label] >= least_pattern:
+        if pixels[label] >= least_pattern and not kept_again[label]:
             row[label] = judged
             judged += 1
     sums = np.zeros((judged, 7), np.float64)
@@ -771,22 +780,10 @@ def age_still_regions(
                     if 0 <= ny < rows and 0 <= nx < cols and labels[ny, nx] != label:
                         sums[at, 5] += abs(np.float64(gray[top + ny, left + nx]) - seen)
                         sums[at, 6] += abs(np.float64(background[top + ny, left + nx]) - model)
-    # A region kept whole at the last check stays kept while it is stale: the ghost step
-    # may have eaten some of its rim before then, and the steps across that rim, the
-    # scene's grey outside in the background against the object's, would otherwise
-    # make it look like a ghost, then eat it all.
-    was_kept = np.zeros(regions, np.bool_)
-    for y in range(rows):
-        for x in range(cols):
-            if stopped_out[top + y, left + x] != 0:
-                was_kept[labels[y, x]] = True
     after = np.full(regions, relit_after, np.int64)
-    kept = np.zeros(regions, np.bool_)
+    kept = kept_again.copy()
+    after[kept_again] = absorb_after
     for label in range(1, regions):
-        if stale[label] and was_kept[label] and pixels[label] >= least_pattern:
-            after[label] = absorb_after
-            kept[label] = True
-            continue
         at = row[label]
         if at < 0:
             continue

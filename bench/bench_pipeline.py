@@ -1,7 +1,7 @@
 """Speed of Vigil's pipeline: per-stage times, whole-job throughput, blob extraction.
 
     python bench/bench_pipeline.py [--frames N] [--repeat R] [--threads T] [--data DIR]
-                                   [--synthetic] [--paced-frames N]
+                                   [--synthetic] [--paced-frames N] [--long-minutes M]
 
 Prints four tables (see bench/README.md):
 
@@ -14,7 +14,10 @@ Prints four tables (see bench/README.md):
     cv2.connectedComponentsWithStats;
 (d) the default method's per-stage time at 320x240 when each frame follows a
     pause, as a live camera's does (40 ms at 25 fps), beside back to back, and
-    the OpenCV MOG2 pipeline's whole frame the same two ways.
+    the OpenCV MOG2 pipeline's whole frame the same two ways;
+(e) a long run: the default method's segmentation at 320x240 over the first and
+    the last minute of the clip looped for several minutes (a model that slows
+    as it ages shows here), beside OpenCV's MOG2 subtractor on the same frames.
 
 All figures are medians. Contenders run round-robin (every contender once,
 then every contender again, R times) so a busy machine slows them alike.
@@ -66,6 +69,9 @@ TARGET_RATIO = 2.0
 MIN_AREA = PipelineConfig().min_area
 PACED_SIZE = (320, 240)
 PAUSE_S = 1 / 25
+LONG_RUN_SOURCE_FRAMES = 300
+"""Source frames of table (e)'s loop: a loop long enough that what passes at a pixel
+does not pass again every few seconds."""
 """How long a paced frame waits before it is processed: a 25 fps camera's frame period."""
 
 StageSamples = dict[str, list[float]]
@@ -413,6 +419,37 @@ def time_paced(frames: Sequence[Image], fps: float, repeats: int) -> list[list[C
     return rows
 
 
+def time_long_run(frames: Sequence[Image], fps: float, minutes: int) -> list[list[Cell]]:
+    """Rows of table (e): the default method's segmentation (its ``apply`` on prepared
+    frames) over each frame of ``frames`` looped for ``minutes`` minutes, back to back;
+    the median of the first and of the last minute, beside MOG2's ``apply`` on the same
+    frames of those minutes (a fresh subtractor, warmed on the frames before them)."""
+    pipeline = make_pipeline(method_names()[0], fps)
+    prepared = [pipeline.prepare(frame) for frame in frames]
+    per_minute = round(60 * fps)
+    total = minutes * per_minute
+    vigil: list[float] = []
+    for index in range(total):
+        frame = prepared[index % len(prepared)]
+        start = time.perf_counter()
+        pipeline.method.apply(frame)
+        vigil.append(time.perf_counter() - start)
+    rows: list[list[Cell]] = []
+    for label, first in (("first minute", 0), (f"minute {minutes}", total - per_minute)):
+        subtractor = mog2()
+        for index in range(first - PACED_WARMUP, first):
+            subtractor.apply(prepared[index % len(prepared)])
+        opencv = []
+        for index in range(first, first + per_minute):
+            start = time.perf_counter()
+            subtractor.apply(prepared[index % len(prepared)])
+            opencv.append(time.perf_counter() - start)
+        vigil_ms = 1000 * median(vigil[first : first + per_minute])
+        opencv_ms = 1000 * median(opencv)
+        rows.append([label, fmt(vigil_ms, 3), fmt(opencv_ms, 3), fmt(vigil_ms / opencv_ms, 2)])
+    return rows
+
+
 # --- main ---------------------------------------------------------------------------
 
 
@@ -442,12 +479,21 @@ def parse_args(argv: Sequence[str] | None = None) -> argparse.Namespace:
         default=100,
         help="timed frames per run of table (d), each after a 40 ms pause (0 leaves (d) out)",
     )
+    parser.add_argument(
+        "--long-minutes",
+        type=int,
+        default=10,
+        help="minutes of video (at the clip's frame rate) in table (e)'s long run (0 leaves "
+        "(e) out)",
+    )
     add_data_argument(parser)
     args = parser.parse_args(argv)
     if args.frames < 2 or args.repeat < 1 or (args.threads is not None and args.threads < 0):
         parser.error("--frames must be >= 2, --repeat >= 1 and --threads >= 0")
     if args.paced_frames < 0:
         parser.error("--paced-frames must be >= 0")
+    if args.long_minutes == 1 or args.long_minutes < 0:
+        parser.error("--long-minutes must be 0 or at least 2")
     return args
 
 
@@ -492,6 +538,20 @@ def main(argv: Sequence[str] | None = None) -> None:
             note=f"    {args.paced_frames} frames x {args.repeat} repeats each way, after "
             f"{PACED_WARMUP} untimed; a paced frame finds code and data gone cold "
             "(bench/README.md)",
+        )
+    if args.long_minutes:
+        source = load_footage(args.data, LONG_RUN_SOURCE_FRAMES, args.synthetic)
+        loop = ping_pong(source.frames, 2 * len(source.frames) - 2)
+        long_run = resized(loop, PACED_SIZE)
+        print_table(
+            f"(e) Long run, {PACED_SIZE[0]}x{PACED_SIZE[1]}: segmentation over the first and "
+            f"the last minute of {args.long_minutes} minutes of the clip looped, ms per frame "
+            "(median), back to back",
+            ["minute", f"vigil {method_label(method_names()[0])}", "OpenCV MOG2", "x MOG2"],
+            time_long_run(long_run, source.fps, args.long_minutes),
+            note=f"    {len(loop)} frames looped (the first {len(source.frames)} of the "
+            "footage, forwards then backwards); the same frames for both; a model "
+            "that slows as it ages shows as a later minute's rise",
         )
     print(f"\ndone in {time.perf_counter() - started:.0f} s")
 

@@ -428,3 +428,25 @@ def test_adaptive_eats_the_ghost_of_an_object_that_leaves_after_the_scene_is_lea
     assert np.median(kept) > 0.85  # the object, moving on, is not eaten with its ghost
     assert max(ghost_sizes) < 0.75 * 1600
     assert max(ghost_sizes[80:]) < 20  # 40 frames after it left, a speck at most
+
+
+def test_adaptive_model_stays_out_of_the_subnormal_range_when_things_have_long_passed():
+    # Something crosses, seeding the second mode's weight where it enters; then the
+    # scene stays quiet. The weight decays every frame, and once reached float32's
+    # subnormal range (after about 90 s at 25 fps) it stuck there, where each
+    # operation costs many times a normal one's: the real clip's model came to cost
+    # a fifth more per frame after ten minutes (bench/bench_pipeline.py, table (e)).
+    # The model's planes must hold zeros or normal numbers.
+    rng = np.random.default_rng(5)
+    background = textured_background(4)[:48, :64]
+    method = AdaptiveBackground()
+    for index in range(2800):
+        frame = background.copy()
+        if 10 <= index < 40:
+            x = index - 10
+            frame[14:34, x : x + 12] = 240
+        method.apply(noisy(frame, rng))
+    model = method._model  # Internal, and the point: no public reading says how it is held.
+    assert model is not None
+    subnormal = (model != 0) & (np.abs(model) < np.finfo(np.float32).tiny)
+    assert not subnormal.any(), f"{np.count_nonzero(subnormal)} subnormal values"

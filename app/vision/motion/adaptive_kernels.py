@@ -45,6 +45,13 @@ from app.vision.types import FloatImage, GrayImage, Mask
 
 MAX_GREY = np.float32(255.0)
 
+LEAST_SIGNIFICANT = np.float32(1e-3)
+"""A weight or deviation that decays below this is zero: it means nothing by then, and
+left to decay it would reach float32's subnormal range (after about 90 s for an
+alternate's weight) and stick there, where each operation costs many times a normal
+one's: the real clip's model cost a fifth more per frame after ten minutes
+(``bench_pipeline.py`` (e)), and twice as much with two pixels in five stuck."""
+
 RING = 8
 """Rows kept of each streamed step (a power of two, above the deepest look-back)."""
 
@@ -508,7 +515,8 @@ def _learn_row(
         rate = dr if calm | flip else near_rate
         sample = min(nearer, limit) if clip_deviation else nearer
         spread = deviation[y, x]
-        deviation[y, x] = spread + rate * (sample - spread) if still | flip else spread
+        spread = spread + rate * (sample - spread) if still | flip else spread
+        deviation[y, x] = spread if spread >= LEAST_SIGNIFICANT else none
         model = background[y, x]
         other = alternate[y, x]
         # The mode differences, as ``_compare`` found them.
@@ -529,6 +537,7 @@ def _learn_row(
         )
         target = full if matched else none
         new_weight = old_weight + mr * (target - old_weight)
+        new_weight = new_weight if new_weight >= LEAST_SIGNIFICANT else none
         # A value far from both modes replaces a weak alternate. Only a sighting right
         # after a background frame seeds its weight: an object's changing inside, which
         # replaces it frame after frame, would otherwise keep it fresh while it passes.

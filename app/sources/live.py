@@ -1,8 +1,9 @@
-"""Live sources for the dashboard's cameras: demo, device, RTSP, HTTP MJPEG, looped file.
+"""Live sources for the dashboard's cameras: demo, device, RTSP, HTTP MJPEG, looped file
+or folder of images.
 
 A source is opened, read frame by frame and closed by one worker thread. A
 failure to open or a lost stream is a ``SourceError`` with a readable reason;
-the worker retries with backoff. ``paced`` sources (the demo scene, a file)
+the worker retries with backoff. ``paced`` sources (the demo scene, a file, a folder)
 would deliver frames as fast as they decode, so the worker paces them at
 ``fps``; live sources deliver at their own rate. Where a stream is MJPEG,
 FFmpeg hands over the camera's own JPEGs, decoded later only as far as needed
@@ -25,8 +26,8 @@ from urllib.parse import unquote, urlparse
 import cv2
 import numpy as np
 
-from app.sources.files import frame_rate
-from app.sources.frames import DecodedFrame, JpegFrame, SourceFrame
+from app.sources.files import DEFAULT_FPS, InputError, frame_rate, open_input
+from app.sources.frames import DecodedFrame, FrameError, JpegFrame, SourceFrame
 from app.sources.synthetic import MovingObject, Scene
 
 SourceKind = Literal["demo", "device", "rtsp", "http", "file"]
@@ -44,6 +45,10 @@ class SourceSpec:
     raw: str
 
 
+MAX_DEVICE_INDEX = 999
+"""The largest device index a source may name (three digits, as V4L2 numbers go)."""
+
+
 def parse_source(text: str) -> SourceSpec:
     """Parse what a person typed; raises ValueError with the reason when it is not a source."""
     raw = text.strip()
@@ -52,7 +57,14 @@ def parse_source(text: str) -> SourceSpec:
     lowered = raw.lower()
     if lowered == "demo":
         return SourceSpec("demo", "demo", raw)
-    if re.fullmatch(r"\d{1,3}", raw):
+    if re.fullmatch(r"[+-]?\d+", raw):
+        # A number is a device index (V4L2 /dev/videoN), never a file's name: a file
+        # named so is written ./5 or file://5.
+        if raw[0] in "+-" or len(raw) > len(str(MAX_DEVICE_INDEX)):
+            raise ValueError(
+                f"a device index is a whole number from 0 to {MAX_DEVICE_INDEX}, not {raw}"
+                " (the first camera is 0)"
+            )
         return SourceSpec("device", raw, raw)
     if lowered.startswith(("rtsp://", "rtsps://", "http://", "https://")):
         url = urlparse(raw)
@@ -301,7 +313,8 @@ def open_source(
     if spec.kind == "demo":
         return DemoSource()
     if spec.kind == "file":
-        return FileSource(Path(spec.target))
+        path = Path(spec.target)
+        return FolderSource(path) if path.is_dir() else FileSource(path)
     if spec.kind == "device":
         return CaptureSource.device(spec.target)
     return CaptureSource.network(spec.target, open_timeout_ms, read_timeout_ms)
@@ -362,14 +375,71 @@ class DemoSource:
         pass
 
 
+class FolderSource:
+    """A folder of images (JPEG, PNG, ...), looped in name order (2 before 10) at
+    ``DEFAULT_FPS``, as ``vigil analyze`` reads one. A CDnet sequence's folder gives the
+    frames of its ``input/``.
+
+    The folder is listed again at the start of each loop, so pictures added meanwhile
+    (a camera that drops JPEGs into it) are shown on the next. An image that does not
+    decode, or whose size is not the first frame's, is one bad frame (``FrameError``).
+    """
+
+    paced = True
+
+    def __init__(self, path: Path) -> None:
+        self.path = path
+        self._images, self.size = self._list()
+        """``size``: the first frame's (width, height), which every frame must have."""
+        self._next = 0
+        self.fps = DEFAULT_FPS
+        self.description = f"folder {path.name}: {len(self._images)} images at {self.fps:g} fps"
+
+    def _list(self) -> tuple[list[Path], tuple[int, int]]:
+        """The folder's images in order and the first one's size; SourceError when it
+        holds no two that decode."""
+        try:
+            folder = open_input(self.path)
+        except InputError as exc:
+            raise SourceError(str(exc)) from None
+        assert folder.images is not None  # A folder's input.
+        return folder.images, folder.size
+
+    def read(self) -> SourceFrame:
+        if self._next >= len(self._images):
+            self._images, self._next = self._list()[0], 0  # A new loop, of the folder now.
+        image_path = self._images[self._next]
+        self._next += 1
+        try:
+            data = image_path.read_bytes()
+        except OSError as exc:  # Removed since the folder was listed, say.
+            raise FrameError(f"{image_path.name} cannot be read: {exc.strerror}") from None
+        frame: SourceFrame
+        if data[:2] == b"\xff\xd8":
+            # A JPEG stays one, decoded only as far as someone needs it (a camera's).
+            frame = JpegFrame(data)
+        else:
+            image = cv2.imdecode(np.frombuffer(data, np.uint8), cv2.IMREAD_COLOR)
+            if image is None:
+                raise FrameError(f"{image_path.name} does not decode as a picture")
+            frame = DecodedFrame(image)
+        if frame.size != self.size:
+            raise FrameError(
+                f"{image_path.name} is {frame.size[0]}x{frame.size[1]}, "
+                f"the first frame was {self.size[0]}x{self.size[1]}"
+            )
+        return frame
+
+    def close(self) -> None:
+        pass
+
+
 class FileSource:
     """A video file looped at its own frame rate."""
 
     paced = True
 
     def __init__(self, path: Path) -> None:
-        if path.is_dir():
-            raise SourceError(f"a folder, not a video file: {path}")
         if not path.is_file():
             raise SourceError(f"file not found: {path}")
         self.path = path

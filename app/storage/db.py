@@ -233,7 +233,14 @@ class Database:
         until: float | None = None,
         limit: int = 200,
     ) -> list[dict[str, Any]]:
-        where, params = _filters("started_at", camera_id, since, until)
+        """Events newest first (by start). ``since`` and ``until`` select the events going
+        on at some time between them, ends included: one that started before ``since``
+        is in if it ended at ``since`` or later, or is still open (``ended_at`` null)."""
+        where, params = _filters("started_at", camera_id, None, until)
+        if since is not None:
+            where += " AND " if where else "WHERE "
+            where += "(ended_at IS NULL OR ended_at >= ?)"
+            params.append(since)
         rows = self._query(
             f"SELECT * FROM events {where} ORDER BY started_at DESC, id DESC"  # noqa: S608
             " LIMIT ?",

@@ -103,7 +103,8 @@ class CameraWorker:
         self._times: deque[float] = deque(maxlen=64)
         self._pipeline: Pipeline | None = None
         self._alarms: AlarmLogic | None = None
-        self._event_rows: dict[int, int] = {}
+        self._event_rows: dict[int, tuple[int, float]] = {}
+        """The open events' rows: the alarm logic's event id -> (row id, started_at)."""
         self._activated_at = 0.0
         self._last_status = 0.0
         self._source: FrameSource | None = None
@@ -171,7 +172,7 @@ class CameraWorker:
                     self._worker_failed(exc, self.frames - frames_before)
         finally:
             with contextlib.suppress(Exception):  # Ending the open event is best effort here.
-                self._deactivate(time.time())
+                self._deactivate()
             self._set_state("stopped", "")
 
     def _connect_and_stream(self, backoff: float) -> float:
@@ -198,7 +199,7 @@ class CameraWorker:
             self._stream(source)
         except SourceError as exc:
             # An open event ends with the picture; detection starts afresh on return.
-            self._deactivate(time.time())
+            self._deactivate()
             if self.state != "live":  # Nothing came that decodes: it did not really open.
                 self._failed(str(exc), backoff)
                 return longer
@@ -218,7 +219,7 @@ class CameraWorker:
         log.exception("camera %s: worker failed", self.camera_id)
         self._failures = self._failures + 1 if frames_handled < STABLE_FRAMES else 1
         with contextlib.suppress(Exception):  # The fault may be the database itself.
-            self._deactivate(time.time())
+            self._deactivate()
         if self._failures >= self.settings.worker_failures_limit:
             wait_s = self.settings.reconnect_max_s
             reason = f"worker failed {self._failures} times in a row: {exc}"
@@ -275,7 +276,7 @@ class CameraWorker:
     def _handle(self, frame: SourceFrame) -> None:
         now_mono = time.monotonic()
         now = time.time()
-        self._apply_pending(now, getattr(self._source, "fps", 25.0))
+        self._apply_pending(getattr(self._source, "fps", 25.0))
         self.frames += 1
         self._times.append(now_mono)
         if len(self._times) >= 2 and self._times[-1] > self._times[0]:
@@ -305,7 +306,7 @@ class CameraWorker:
             elif update.newcomers and alarms.current is not None:
                 self._alarm(alarms.current, live, result, now)
             if update.ended is not None:
-                self._motion_end(update.ended, now)
+                self._motion_end(update.ended)
         elif now_mono >= self._next_glance:
             # At detection size: a decoded 4K frame, kept nine times, would hold 75 MB.
             self._glances.append(GLANCE_SIZE(frame.gray(PipelineConfig.detect_width)))
@@ -314,7 +315,7 @@ class CameraWorker:
         if now_mono - self._last_status >= self.settings.status_interval_s:
             self._publish_status()
 
-    def _apply_pending(self, now: float, fps: float) -> None:
+    def _apply_pending(self, fps: float) -> None:
         with self._lock:
             pending, self._pending = self._pending, {}
             want_active = self._want_active
@@ -332,7 +333,7 @@ class CameraWorker:
             self._alarms = AlarmLogic(self.settings.quiet_s, self.settings.alarm_gap_s)
             self._activated_at = time.monotonic()
         elif not want_active and self._pipeline is not None:
-            self._deactivate(now)
+            self._deactivate()
         pipeline = self._pipeline
         if pipeline is None or not pending:
             return
@@ -370,7 +371,7 @@ class CameraWorker:
         if scene is not None:
             pipeline.start_from(scene)
 
-    def _deactivate(self, now: float) -> None:
+    def _deactivate(self) -> None:
         alarms = self._alarms
         self._pipeline = None  # First: detection stops even if ending the event fails.
         self._alarms = None
@@ -380,7 +381,7 @@ class CameraWorker:
         if alarms is not None:
             ended = alarms.finish()
             if ended is not None:
-                self._motion_end(ended, now)
+                self._motion_end(ended)
 
     # Alarms -------------------------------------------------------------------------------
 
@@ -397,11 +398,13 @@ class CameraWorker:
         boxes = [d.box.as_list() for d in detections]
         picture = ANNOTATOR(live.source.image(), detections, live.trails)
         difference = difference_picture(result.difference, live.source.size)
-        event_id = self._event_rows.get(event.id)
-        if event_id is None:
+        row = self._event_rows.get(event.id)
+        if row is None:
             track_ids = sorted(d.track_id for d in detections if d.track_id is not None)
             event_id = self.db.add_event(self.camera_id, now, boxes, event.max_area, track_ids)
-            self._event_rows[event.id] = event_id
+            self._event_rows[event.id] = (event_id, now)
+        else:
+            event_id = row[0]
         failing_before = self.snapshots.failure(self.camera_id)
         ids: dict[str, int] = {}
         for kind, image in (("frame", picture), ("difference", difference)):
@@ -443,14 +446,25 @@ class CameraWorker:
             }
         )
 
-    def _motion_end(self, event: MotionEvent, now: float) -> None:
-        event_id = self._event_rows.pop(event.id, None)
-        if event_id is None:
+    def _motion_end(self, event: MotionEvent) -> None:
+        """The event is over: its row ends, and ``motion_end`` says so, with the same end.
+
+        An event lasts from its first frame with motion to its last, as ``vigil analyze``'s
+        events do: the quiet seconds that tell it is over (``quiet_s``), or a Stop before
+        them, are not part of it. So ``ended_at`` is the time of its last moving frame, on
+        the clock of ``started_at`` (the time of its first), and the message's ``ts`` and
+        ``duration_s`` are ``ended_at`` and ``ended_at - started_at``, as ``/api/events``
+        and the page show them.
+        """
+        row = self._event_rows.pop(event.id, None)
+        if row is None:
             return
-        self.db.end_event(event_id, now, event.max_area, sorted(event.track_ids))
+        event_id, started_at = row
+        ended_at = started_at + max(0.0, event.end_time_s - event.start_time_s)
+        self.db.end_event(event_id, ended_at, event.max_area, sorted(event.track_ids))
         self.bus.publish(
             motion_end_message(
-                self.camera_id, event_id, now, event.end_time_s - event.start_time_s, event.max_area
+                self.camera_id, event_id, ended_at, ended_at - started_at, event.max_area
             )
         )
 

@@ -89,6 +89,16 @@ def test_upload_limits(serve: Callable[..., Running], tmp_path: Path) -> None:
         f"{server.base}/api/analyses", files={"file": ("x.avi", b"x")}, data={"method": "magic"}
     )
     assert odd.status_code == 422
+    # A minimum area no frame can hold, and fields the upload does not know (misspelt).
+    for fields, named in (
+        ({"min_area": "1e26"}, "min_area"),
+        ({"min-area": "50"}, "min-area"),
+        ({"sensitivity": "10", "mask": "x"}, "mask"),
+    ):
+        refused = httpx.post(
+            f"{server.base}/api/analyses", files={"file": ("x.avi", b"x")}, data=fields
+        )
+        assert refused.status_code == 422 and named in refused.json()["detail"], refused.text
     assert httpx.get(f"{server.base}/api/analyses/ffff").status_code == 404
 
 

@@ -11,6 +11,7 @@ from typing import Any
 import httpx
 import numpy as np
 
+from app.api.routes.inputs import MAX_MIN_AREA
 from app.storage import Database
 from tests.api.vigil_livekit import MjpegCamera, Running, WsClient, read_mjpeg_frames, wait_for
 
@@ -122,8 +123,9 @@ def test_camera_that_cannot_open_shows_error(serve: Callable[..., Running], tmp_
         (card,) = read_mjpeg_frames(stream.iter_bytes(), 1)
     assert card.shape == (360, 640, 3)
     assert 0.01 < np.mean(card > 128) < 0.2, "light text on a dark card"
+    # A folder is a source (of image frames), but this one holds none.
     _, camera = in_error(str(tmp_path))
-    assert camera["reason"].startswith(f"a folder, not a video file: {tmp_path}")
+    assert camera["reason"].startswith(f"no image frames in folder: {tmp_path}")
 
 
 def test_password_protects_everything_but_health(serve: Callable[..., Running]) -> None:
@@ -247,3 +249,92 @@ def test_source_passwords_are_never_shown(serve: Callable[..., Running], tmp_pat
             )
     finally:
         camera.stop()
+
+
+def test_camera_settings_take_only_their_own_types_and_sane_values(
+    serve: Callable[..., Running],
+) -> None:
+    """No coercion: a string or a boolean is no sensitivity, "yes" is no boolean; whole
+    numbers are numbers. A minimum area larger than any frame would turn detection off."""
+    server = serve()
+    base = server.base
+    cam = httpx.post(f"{base}/api/cameras", json={"name": "door", "source": "demo"}).json()["id"]
+
+    def patched(body: dict[str, Any]) -> httpx.Response:
+        return httpx.patch(f"{base}/api/cameras/{cam}", json=body)
+
+    for body in (
+        {"sensitivity": "10"},
+        {"sensitivity": True},
+        {"min_area": "100"},
+        {"min_area": False},
+        {"show_mask": "yes"},
+        {"show_mask": 1},
+        {"mask": [[["0", 0], [1, 0], [1, 1]]]},
+        {"name": 5},
+    ):
+        refused = patched(body)
+        assert refused.status_code == 422, body
+        (error,) = refused.json()["detail"]
+        assert error["loc"][:2] == ["body", next(iter(body))], error
+        assert error["msg"].startswith("Input should be a valid"), error
+    too_large = patched({"min_area": 1e26})
+    assert too_large.status_code == 422
+    assert f"at most {MAX_MIN_AREA:,}" in too_large.json()["detail"][0]["msg"]
+    assert patched({"min_area": MAX_MIN_AREA + 1}).status_code == 422
+    assert httpx.get(f"{base}/api/cameras/{cam}").json()["min_area"] == 100
+
+    # What the page sends: numbers (whole or not), booleans, null for automatic.
+    for body, shown in (
+        ({"sensitivity": 10}, 10),
+        ({"sensitivity": 12.5}, 12.5),
+        ({"sensitivity": None}, None),
+        ({"min_area": MAX_MIN_AREA}, MAX_MIN_AREA),
+        ({"min_area": 0}, 0),
+        ({"show_mask": True}, True),
+    ):
+        changed = patched(body)
+        assert changed.status_code == 200, changed.text
+        assert changed.json()[next(iter(body))] == shown
+
+    for extra in ({"sensitivity": "10"}, {"min_area": 1e26}, {"sensitivity": False}):
+        added = httpx.post(f"{base}/api/cameras", json={"name": "x", "source": "demo", **extra})
+        assert added.status_code == 422, extra
+    added = httpx.post(
+        f"{base}/api/cameras", json={"name": "x", "source": "demo", "sensitivity": 20}
+    )
+    assert added.status_code == 200, added.text
+
+
+def test_every_body_refuses_unknown_fields(serve: Callable[..., Running]) -> None:
+    """As the camera routes do: a misspelt or unknown field is an error, not ignored."""
+    server = serve()
+    base = server.base
+    cam = httpx.post(f"{base}/api/cameras", json={"name": "door", "source": "demo"}).json()["id"]
+    for url, body in (
+        ("/api/snapshots/delete", {"ids": [1], "all": True}),
+        (f"/api/cameras/{cam}/activate", {"camera_id": 2}),
+        (f"/api/cameras/{cam}/stop", {"force": True}),
+        (f"/api/cameras/{cam}/activate", [1]),
+    ):
+        refused = httpx.post(f"{base}{url}", json=body)
+        assert refused.status_code == 422, (url, body, refused.text)
+    assert httpx.get(f"{base}/api/cameras/{cam}").json()["active"] is False
+    # Without a body, as the page sends them, or with an empty one, they do their work.
+    assert httpx.post(f"{base}/api/cameras/{cam}/activate").json()["active"] is True
+    assert httpx.post(f"{base}/api/cameras/{cam}/stop", json={}).json()["active"] is False
+    deleted = httpx.post(f"{base}/api/snapshots/delete", json={"ids": [1]})
+    assert deleted.status_code == 200 and deleted.json() == {"deleted": []}
+
+
+def test_a_negative_device_index_is_refused(serve: Callable[..., Running]) -> None:
+    server = serve()
+    base = server.base
+    for source in ("-1", " -3 ", "-0"):
+        refused = httpx.post(f"{base}/api/cameras", json={"name": "x", "source": source})
+        assert refused.status_code == 422, refused.text
+        assert "device index" in refused.text
+    cam = httpx.post(f"{base}/api/cameras", json={"name": "door", "source": "demo"}).json()["id"]
+    refused = httpx.patch(f"{base}/api/cameras/{cam}", json={"source": "-1"})
+    assert refused.status_code == 422 and "device index" in refused.text
+    assert httpx.get(f"{base}/api/cameras").json()[0]["source"] == "demo"

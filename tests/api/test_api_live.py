@@ -12,10 +12,16 @@ import cv2
 import httpx
 import numpy as np
 
+from app.storage import Database
 from tests.api.vigil_livekit import (
+    FPS,
+    MOTION_FIRST,
+    MOTION_LAST,
     Running,
     WsClient,
     add_camera,
+    background,
+    frame_at,
     free_socket,
     read_mjpeg_frames,
     wait_for,
@@ -272,3 +278,84 @@ def test_network_camera_state_is_visible_and_recovers(serve: Callable[..., Runni
             assert back["state"] == "live"
     finally:
         camera.stop()
+
+
+def test_motion_end_gives_the_duration_the_event_is_listed_with(
+    serve: Callable[..., Running], motion_video: Path
+) -> None:
+    """An event lasts from its first moving frame to its last: the ``motion_end`` message
+    and the row of ``/api/events`` (which the page shows after a reload) say the same,
+    and neither counts the quiet seconds that it takes to tell the event is over."""
+    server = serve()
+    cam = _add(server, motion_video)
+    with WsClient(server.ws) as ws:
+        httpx.post(f"{server.base}/api/cameras/{cam}/activate").raise_for_status()
+        (alarm,) = ws.wait("alarm", 15, camera_id=cam)[:1]
+        ended = ws.wait("motion_end", 15, camera_id=cam)[0]
+    (event,) = [
+        e
+        for e in httpx.get(f"{server.base}/api/events", params={"camera_id": cam}).json()
+        if e["id"] == alarm["event_id"]
+    ]
+    assert event["started_at"] == alarm["ts"]
+    assert ended["ts"] == event["ended_at"]
+    assert ended["duration_s"] == round(event["ended_at"] - event["started_at"], 3)
+    # The square moves for 2 s; the event ends after quiet_s (0.5 s) without motion,
+    # which is when the message goes out, not when the event ended.
+    assert 1.0 < ended["duration_s"] < (MOTION_LAST - MOTION_FIRST + 1) / FPS + 0.2
+    assert ended["_received"] - event["ended_at"] >= 0.4
+
+
+def test_a_folder_of_images_is_a_camera(serve: Callable[..., Running], tmp_path: Path) -> None:
+    """DESIGN.md's file sources include a folder of images: looped by name, at 25 fps."""
+    folder = tmp_path / "frames"
+    folder.mkdir()
+    base = background()
+    for index in range(45):  # Both kinds of picture; 2 sorts before 10.
+        cv2.imwrite(str(folder / f"{index}.{'png' if index % 2 else 'jpg'}"), frame_at(index, base))
+    (folder / "notes.txt").write_text("not a frame")
+    server = serve()
+    cam = _add(server, folder)
+    camera = httpx.get(f"{server.base}/api/cameras/{cam}").json()
+    assert camera["source_fps"] == 25.0 and camera["reason"] == ""
+    with WsClient(server.ws) as ws:
+        httpx.post(f"{server.base}/api/cameras/{cam}/activate").raise_for_status()
+        (alarm,) = ws.wait("alarm", 15, camera_id=cam)[:1]
+        ws.wait("motion_end", 15, camera_id=cam)
+        ws.wait("alarm", 15, count=2, camera_id=cam)  # The folder loops.
+    _x, y, _w, h = alarm["boxes"][0]
+    assert 60 <= y + h / 2 <= 150, "the box should be on the square's row"
+    frame = httpx.get(f"{server.base}/api/cameras/{cam}/frame.jpg", timeout=10)
+    picture = cv2.imdecode(np.frombuffer(frame.content, np.uint8), cv2.IMREAD_COLOR)
+    assert picture.shape == (240, 320, 3)
+
+
+def test_event_filters_select_the_events_that_overlap_the_window(
+    serve: Callable[..., Running], tmp_path: Path
+) -> None:
+    """``since``/``until`` select the events that were going on at some time between them:
+    one that started before ``since`` and ended after it, or is still open, is in."""
+    data = tmp_path / "data"
+    server = serve(data)
+    db = Database(data / "vigil.db")
+    try:
+        before = db.add_event(1, 50.0, [], 10.0)
+        db.end_event(before, 60.0, 10.0)
+        across = db.add_event(1, 100.0, [], 10.0)
+        db.end_event(across, 110.0, 10.0)
+        running = db.add_event(1, 200.0, [], 10.0)  # Still open: ended_at is null.
+    finally:
+        db.close()
+
+    def listed(**window: float) -> list[int]:
+        response = httpx.get(f"{server.base}/api/events", params=window)
+        assert response.status_code == 200, response.text
+        return [e["id"] for e in response.json()]
+
+    assert listed(since=105) == [running, across]
+    assert listed(since=105, until=150) == [across]
+    assert listed(until=105) == [across, before]
+    assert listed(since=61, until=99) == []
+    assert listed(since=10_000) == [running]
+    assert listed(since=60, until=60) == [before]
+    assert listed(since=110, until=200) == [running, across]

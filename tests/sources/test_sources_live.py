@@ -9,12 +9,16 @@ from functools import partial
 from http.server import SimpleHTTPRequestHandler, ThreadingHTTPServer
 from pathlib import Path
 
+import cv2
+import numpy as np
 import pytest
 
+from app.sources.frames import FrameError, JpegFrame
 from app.sources.live import (
     CaptureSource,
     DemoSource,
     FileSource,
+    FolderSource,
     SourceError,
     open_source,
     parse_source,
@@ -59,6 +63,12 @@ def test_parse_source(text: str, kind: str, target: str) -> None:
 )
 def test_parse_source_rejects(text: str) -> None:
     with pytest.raises(ValueError):
+        parse_source(text)
+
+
+@pytest.mark.parametrize("text", ["-1", " -2 ", "-0", "-10", "1000", "99999999999999999999"])
+def test_a_device_index_out_of_range_is_refused_not_taken_for_a_file(text: str) -> None:
+    with pytest.raises(ValueError, match=r"device index .* 0 to 999"):
         parse_source(text)
 
 
@@ -182,6 +192,47 @@ def test_file_loops_at_its_own_rate(tmp_path: Path) -> None:
     frames = [source.read() for _ in range(25)]  # Two and a half loops.
     assert all(f.image().shape == (240, 320, 3) for f in frames)
     source.close()
+
+
+def test_a_folder_of_images_loops_by_name(tmp_path: Path) -> None:
+    """A folder of pictures is a file source: its images in name order (2 before 10, JPEG
+    and PNG alike), looped at 25 fps; a picture that does not decode is a bad frame."""
+    folder = tmp_path / "frames"
+    folder.mkdir()
+    for index in range(12):
+        picture = np.full((48, 64, 3), 20 * index, np.uint8)
+        cv2.imwrite(str(folder / f"f{index}.{'png' if index % 2 else 'jpg'}"), picture)
+    (folder / "f5.png").write_bytes(b"not a picture")
+    (folder / "readme.txt").write_text("not a frame")
+    source = open_source(parse_source(f"file://{folder}"))
+    assert isinstance(source, FolderSource)
+    assert source.paced and source.fps == 25.0
+    assert source.description == "folder frames: 12 images at 25 fps"
+    levels = []
+    for index in range(30):  # Two and a half loops.
+        try:
+            frame = source.read()
+            levels.append(round(float(frame.image().mean()) / 20))
+        except FrameError:
+            levels.append(None)
+            continue
+        # A JPEG is handed over undecoded, as a camera's are: an idle camera decodes none.
+        assert isinstance(frame, JpegFrame) == (index % 12 % 2 == 0)
+    loop = [0, 1, 2, 3, 4, None, 6, 7, 8, 9, 10, 11]
+    assert levels == (loop * 3)[:30]
+    source.close()
+    (folder / "f5.png").unlink()
+    cv2.imwrite(str(folder / "f99.png"), np.zeros((96, 128, 3), np.uint8))
+    again = open_source(parse_source(str(folder)))
+    for _ in range(11):
+        assert again.read().image().shape == (48, 64, 3)
+    with pytest.raises(FrameError, match=r"f99\.png is 128x96, the first frame was 64x48"):
+        again.read()
+    assert again.read().image().shape == (48, 64, 3), "then it goes on, from the first"
+    again.close()
+    (tmp_path / "empty").mkdir()
+    with pytest.raises(SourceError, match="no image frames in folder"):
+        open_source(parse_source(str(tmp_path / "empty")))
 
 
 def test_file_errors_are_readable(tmp_path: Path) -> None:

@@ -53,6 +53,29 @@ def test_events_and_snapshot_filters(tmp_path: Path) -> None:
     db.close()
 
 
+def test_event_filters_select_events_that_overlap_the_window(tmp_path: Path) -> None:
+    """``since``/``until`` select the events going on at some time in the window: one that
+    began before ``since`` and ended (or is still running) after it is in."""
+    db = Database(tmp_path / "v.db")
+    early = db.add_event(1, 50.0, [], 1.0)
+    db.end_event(early, 60.0, 1.0)
+    across = db.add_event(1, 100.0, [], 1.0)
+    db.end_event(across, 110.0, 1.0)
+    running = db.add_event(2, 200.0, [], 1.0)  # Open: it runs on.
+
+    def ids(**window: float) -> list[int]:
+        return [e["id"] for e in db.events(**window)]  # type: ignore[arg-type]
+
+    assert ids(since=105) == [running, across]
+    assert ids(since=105, until=150) == [across]
+    assert ids(until=105) == [across, early]
+    assert ids(since=60.5, until=99.5) == []
+    assert ids(since=1e9) == [running]
+    assert ids(since=60, until=100) == [across, early]  # The ends of the window count.
+    assert [e["id"] for e in db.events(camera_id=1, since=105)] == [across]
+    db.close()
+
+
 def test_unfinished_analyses_fail_on_restart(tmp_path: Path) -> None:
     db = Database(tmp_path / "v.db")
     db.add_analysis("abc", "x.avi", {"method": None})

@@ -15,7 +15,7 @@ from typing import Any, BinaryIO
 from fastapi import APIRouter, Form, HTTPException, Request, UploadFile
 from fastapi.responses import FileResponse, JSONResponse, StreamingResponse
 
-from app.api.routes.inputs import is_control
+from app.api.routes.inputs import check_min_area, is_control
 from app.api.routes.streams import MJPEG_TYPE, NO_CACHE, mjpeg_part
 from app.api.services import Services, services
 from app.vision.motion import METHODS
@@ -24,6 +24,8 @@ from app.workers.analysis_child import LIVE_FRAME
 router = APIRouter(prefix="/api/analyses", tags=["analyses"])
 
 FINISHED = ("done", "failed")
+UPLOAD_FIELDS = frozenset({"file", "method", "sensitivity", "min_area"})
+"""The parts of an upload; any other is refused."""
 
 
 class UploadTooLargeError(Exception):
@@ -68,6 +70,17 @@ async def upload(
         raise HTTPException(422, "sensitivity must be between 1 and 255 grey levels")
     if min_area is not None and not (math.isfinite(min_area) and min_area >= 0):
         raise HTTPException(422, "min_area must be a number of pixels, 0 or more")
+    try:
+        check_min_area(min_area)
+    except ValueError as exc:
+        raise HTTPException(422, str(exc)) from None
+    unknown = sorted(set((await request.form()).keys()) - UPLOAD_FIELDS)
+    if unknown:  # A misspelt setting (min-area) is an error, as in the camera routes.
+        raise HTTPException(
+            422,
+            f"unknown field{'s' if len(unknown) > 1 else ''} {', '.join(map(repr, unknown))};"
+            f" an upload has {', '.join(sorted(UPLOAD_FIELDS))}",
+        )
     analysis_id = uuid.uuid4().hex[:12]
     folder = svc.analyses.folder(analysis_id)
     folder.mkdir(parents=True, exist_ok=True)

@@ -12,7 +12,7 @@ from typing import Annotated, Any
 from fastapi import APIRouter, HTTPException, Request, Response
 from pydantic import BaseModel, ConfigDict, Field, field_validator
 
-from app.api.routes.inputs import StrictJsonRoute, is_control
+from app.api.routes.inputs import StrictJsonRoute, check_min_area, is_control
 from app.api.services import services
 from app.sources.live import MASK, has_masked_password, parse_source, with_stored_password
 from app.vision.motion import DEFAULT_METHOD, METHODS
@@ -59,8 +59,14 @@ def _check_new_source(value: str) -> str:
     return value
 
 
+STRICT = ConfigDict(extra="forbid", strict=True)
+"""A misspelt setting is an error, not ignored; and a value must be of its field's JSON
+type, not coerced: ``"10"`` or ``true`` is no sensitivity, ``"yes"`` or ``1`` no
+``show_mask``. A whole number is a number (``10`` for ``10.0``)."""
+
+
 class CameraIn(BaseModel):
-    model_config = ConfigDict(extra="forbid")  # A misspelt setting is an error, not ignored.
+    model_config = STRICT
 
     name: str = Field(min_length=1, max_length=100)
     source: str = Field(min_length=1, max_length=2000)
@@ -70,12 +76,13 @@ class CameraIn(BaseModel):
 
     _name = field_validator("name")(_check_text)
     _method = field_validator("method")(_check_method)
+    _min_area = field_validator("min_area")(check_min_area)
     _source = field_validator("source")(_check_source)
     _new_source = field_validator("source")(_check_new_source)
 
 
 class CameraPatch(BaseModel):
-    model_config = ConfigDict(extra="forbid")
+    model_config = STRICT
 
     name: str | None = Field(default=None, min_length=1, max_length=100)
     source: str | None = Field(default=None, min_length=1, max_length=2000)
@@ -88,6 +95,7 @@ class CameraPatch(BaseModel):
 
     _name = field_validator("name")(_check_text)
     _method = field_validator("method")(_check_method)
+    _min_area = field_validator("min_area")(check_min_area)
 
     @field_validator("mask")
     @classmethod
@@ -166,6 +174,13 @@ def delete_camera(request: Request, camera_id: int) -> Response:
     return Response(status_code=204)
 
 
+class NoSettings(BaseModel):
+    """Activate and Stop take no settings: an empty object at most (or no body at all),
+    so that a field sent to them is refused as the other routes refuse it, not ignored."""
+
+    model_config = STRICT
+
+
 def _set_active(request: Request, camera_id: int, active: bool) -> dict[str, Any]:
     svc = services(request)
     _camera_or_404(request, camera_id)
@@ -179,12 +194,12 @@ def _set_active(request: Request, camera_id: int, active: bool) -> dict[str, Any
 
 
 @router.post("/{camera_id}/activate")
-def activate(request: Request, camera_id: int) -> dict[str, Any]:
+def activate(request: Request, camera_id: int, body: NoSettings | None = None) -> dict[str, Any]:
     """Start detecting (the paper's Activate trigger): alarms from the next frame."""
     return _set_active(request, camera_id, True)
 
 
 @router.post("/{camera_id}/stop")
-def stop(request: Request, camera_id: int) -> dict[str, Any]:
+def stop(request: Request, camera_id: int, body: NoSettings | None = None) -> dict[str, Any]:
     """Stop detecting; the live picture goes on. An open event ends (``motion_end``)."""
     return _set_active(request, camera_id, False)

@@ -18,5 +18,6 @@ def list_events(
     until: TimeFilter = None,
     limit: int = Query(200, ge=1, le=5000),
 ) -> list[dict[str, Any]]:
-    """Motion events, newest first; ``since``/``until`` are Unix times in seconds."""
+    """Motion events, newest first; ``since``/``until`` are Unix times in seconds and
+    select the events going on at some time between them (an open one runs on)."""
     return services(request).database.events(camera_id, since, until, limit)

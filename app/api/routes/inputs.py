@@ -32,6 +32,20 @@ CameraFilter = Annotated[int | None, Query(ge=0, le=MAX_ID)]
 """``camera_id`` in a listing's filters."""
 TimeFilter = Annotated[float | None, Query(allow_inf_nan=False)]
 """``since`` and ``until``: Unix seconds, finite."""
+MAX_MIN_AREA = 7680 * 4320
+"""The largest ``min_area``: an 8K frame's pixels (33,177,600). An object must cover at
+least ``min_area`` pixels of the input frame, so a larger value can never be met and
+would quietly turn detection off."""
+
+
+def check_min_area(value: float | None) -> float | None:
+    """``min_area`` at most ``MAX_MIN_AREA``: more than any frame holds is no setting."""
+    if value is not None and value > MAX_MIN_AREA:
+        raise ValueError(
+            f"min_area is at most {MAX_MIN_AREA:,} pixels (an 8K frame, 7680x4320): a larger"
+            " one no object could cover, and detection would be off"
+        )
+    return value
 
 
 def is_control(char: str) -> bool:

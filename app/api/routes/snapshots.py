@@ -9,7 +9,7 @@ from typing import Annotated, Any
 
 from fastapi import APIRouter, HTTPException, Query, Request
 from fastapi.responses import FileResponse, StreamingResponse
-from pydantic import BaseModel, Field
+from pydantic import BaseModel, ConfigDict, Field
 
 from app.api.routes.inputs import MAX_ID, MAX_IDS, CameraFilter, StrictJsonRoute, TimeFilter
 from app.api.services import Services, services
@@ -101,6 +101,8 @@ def snapshot_file(request: Request, snapshot_id: int) -> FileResponse:
 
 
 class DeleteRequest(BaseModel):
+    model_config = ConfigDict(extra="forbid", strict=True)  # As the camera routes' bodies.
+
     ids: list[Annotated[int, Field(ge=0, le=MAX_ID)]] = Field(min_length=1, max_length=MAX_IDS)
 
 

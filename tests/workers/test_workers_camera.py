@@ -80,10 +80,12 @@ def test_alarm_writes_event_and_snapshots(parts: dict[str, Any], tmp_path: Path)
     received = _messages_until_motion_end(parts, worker)
     (alarm,) = [m for m in received if m["type"] == "alarm"]
     db: Database = parts["db"]
-    (event,) = db.events()
-    assert event["id"] == alarm["event_id"] and event["ended_at"] is not None
+    # The video loops: a worker that fell behind may start the next crossing's event
+    # before it sees the stop. This test is about the first.
+    (event,) = [e for e in db.events() if e["id"] == alarm["event_id"]]
+    assert event["ended_at"] is not None
     assert event["max_area"] > 1000
-    snaps = db.snapshots()
+    snaps = [s for s in db.snapshots() if s["event_id"] == event["id"]]
     assert {s["kind"] for s in snaps} == {"frame", "difference"}
     for snap in snaps:
         path = parts["snapshots"].path(snap["path"])

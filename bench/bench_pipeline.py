@@ -69,10 +69,10 @@ TARGET_RATIO = 2.0
 MIN_AREA = PipelineConfig().min_area
 PACED_SIZE = (320, 240)
 PAUSE_S = 1 / 25
-LONG_RUN_SOURCE_FRAMES = 300
-"""Source frames of table (e)'s loop: a loop long enough that what passes at a pixel
-does not pass again every few seconds."""
 """How long a paced frame waits before it is processed: a 25 fps camera's frame period."""
+LONG_RUN_SOURCE_FRAMES = 300
+"""Source frames of table (e)'s loop, played forwards then backwards (about 20 s of the
+real clip): what passes a pixel at one moment of the loop may not pass it again."""
 
 StageSamples = dict[str, list[float]]
 """Stage name -> per-frame durations in seconds ("total" = the frame's sum)."""

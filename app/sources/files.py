@@ -234,7 +234,7 @@ def open_input(path: Path, fps: float | None = None, max_pixels: int | None = No
     )
 
 
-def _list_images(folder: Path) -> list[Path]:
+def list_images(folder: Path) -> list[Path]:
     """The folder's image files, sorted by name, numbers in names by their value
     (2.png before 10.png, as in000002.jpg before in000010.jpg)."""
     try:
@@ -250,14 +250,14 @@ def _natural_order(path: Path) -> list[str | int]:
 
 
 def _open_folder(folder: Path, fps: float | None, max_pixels: int | None) -> VideoInput:
-    images = _list_images(folder)
+    images = list_images(folder)
     sequence = folder / "input"
     if sequence.is_dir() and (
         len(images) < MIN_FRAMES or any((folder / name).exists() for name in CDNET_MARKERS)
     ):
         # A data set's sequence (CDnet; Wallflower, whose folder holds one label picture):
         # its frames, not its ROI or label pictures.
-        folder, images = sequence, _list_images(sequence)
+        folder, images = sequence, list_images(sequence)
     if not images:
         raise InputError(f"no image frames in folder: {folder}")
     if len(images) < MIN_FRAMES:

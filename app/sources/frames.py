@@ -97,6 +97,9 @@ class JpegFrame(SourceFrame):
 
     def _decode(self, flag: int) -> np.ndarray:
         assert self.jpeg is not None
+        # As its header says (``size``): an EXIF orientation would turn the picture, not
+        # the header, and boxes found on one would be drawn on the other.
+        flag |= cv2.IMREAD_IGNORE_ORIENTATION
         picture = cv2.imdecode(np.frombuffer(self.jpeg, np.uint8), flag)
         if picture is None:
             raise FrameError("camera sent a JPEG that does not decode")

@@ -26,7 +26,7 @@ from urllib.parse import unquote, urlparse
 import cv2
 import numpy as np
 
-from app.sources.files import DEFAULT_FPS, InputError, frame_rate, open_input
+from app.sources.files import DEFAULT_FPS, InputError, frame_rate, list_images, open_input
 from app.sources.frames import DecodedFrame, FrameError, JpegFrame, SourceFrame
 from app.sources.synthetic import MovingObject, Scene
 
@@ -44,6 +44,12 @@ class SourceSpec:
     """What is opened: the device index or path, the URL, or the file's path."""
     raw: str
 
+
+EXIF = b"Exif\x00\x00"
+"""The start of a JPEG's EXIF segment (APP1), which may say to turn the picture."""
+EXIF_REACH = 4096
+"""Bytes from a JPEG's start in which an EXIF segment is sought: it comes first, or after
+a JFIF one."""
 
 MAX_DEVICE_INDEX = 999
 """The largest device index a source may name (three digits, as V4L2 numbers go)."""
@@ -381,54 +387,50 @@ class FolderSource:
     frames of its ``input/``.
 
     The folder is listed again at the start of each loop, so pictures added meanwhile
-    (a camera that drops JPEGs into it) are shown on the next. An image that does not
-    decode, or whose size is not the first frame's, is one bad frame (``FrameError``).
+    (a camera that drops JPEGs into it) are shown on the next. Each picture is a frame
+    as it is, whatever its size (a camera whose resolution was changed goes on; the
+    detector learns the new view). One that cannot be read or decoded is a bad frame
+    (``FrameError``).
     """
 
     paced = True
 
     def __init__(self, path: Path) -> None:
-        self.path = path
-        self._images, self.size = self._list()
-        """``size``: the first frame's (width, height), which every frame must have."""
+        try:
+            found = open_input(path)  # Checks that two of its pictures decode.
+        except InputError as exc:
+            raise SourceError(str(exc)) from None
+        assert found.images is not None  # A folder's input.
+        self._folder = found.path
+        """The folder that holds the frames (a CDnet sequence's ``input/``)."""
+        self._images = found.images
         self._next = 0
         self.fps = DEFAULT_FPS
         self.description = f"folder {path.name}: {len(self._images)} images at {self.fps:g} fps"
 
-    def _list(self) -> tuple[list[Path], tuple[int, int]]:
-        """The folder's images in order and the first one's size; SourceError when it
-        holds no two that decode."""
-        try:
-            folder = open_input(self.path)
-        except InputError as exc:
-            raise SourceError(str(exc)) from None
-        assert folder.images is not None  # A folder's input.
-        return folder.images, folder.size
-
     def read(self) -> SourceFrame:
-        if self._next >= len(self._images):
-            self._images, self._next = self._list()[0], 0  # A new loop, of the folder now.
+        if self._next >= len(self._images):  # A new loop, of the folder as it is now.
+            try:
+                self._images, self._next = list_images(self._folder), 0
+            except (InputError, OSError) as exc:
+                raise SourceError(f"folder {self._folder.name}: {exc}") from None
+            if not self._images:
+                raise SourceError(f"no image frames in folder: {self._folder}")
         image_path = self._images[self._next]
         self._next += 1
         try:
             data = image_path.read_bytes()
         except OSError as exc:  # Removed since the folder was listed, say.
             raise FrameError(f"{image_path.name} cannot be read: {exc.strerror}") from None
-        frame: SourceFrame
-        if data[:2] == b"\xff\xd8":
-            # A JPEG stays one, decoded only as far as someone needs it (a camera's).
-            frame = JpegFrame(data)
-        else:
-            image = cv2.imdecode(np.frombuffer(data, np.uint8), cv2.IMREAD_COLOR)
-            if image is None:
-                raise FrameError(f"{image_path.name} does not decode as a picture")
-            frame = DecodedFrame(image)
-        if frame.size != self.size:
-            raise FrameError(
-                f"{image_path.name} is {frame.size[0]}x{frame.size[1]}, "
-                f"the first frame was {self.size[0]}x{self.size[1]}"
-            )
-        return frame
+        if data[:2] == b"\xff\xd8" and EXIF not in data[:EXIF_REACH]:
+            # A JPEG stays one, decoded only as far as someone needs it, as a camera's.
+            return JpegFrame(data)
+        # Other kinds, and a JPEG with EXIF, which may turn it (phone pictures): upright,
+        # as ``vigil analyze`` reads it.
+        image = cv2.imdecode(np.frombuffer(data, np.uint8), cv2.IMREAD_COLOR)
+        if image is None:
+            raise FrameError(f"{image_path.name} does not decode as a picture")
+        return DecodedFrame(image)
 
     def close(self) -> None:
         pass

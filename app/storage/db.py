@@ -236,6 +236,8 @@ class Database:
         """Events newest first (by start). ``since`` and ``until`` select the events going
         on at some time between them, ends included: one that started before ``since``
         is in if it ended at ``since`` or later, or is still open (``ended_at`` null)."""
+        if since is not None and until is not None and since > until:
+            return []  # An empty window, as the snapshots' filter has it.
         where, params = _filters("started_at", camera_id, None, until)
         if since is not None:
             where += " AND " if where else "WHERE "

@@ -210,6 +210,35 @@ def test_malformed_json_is_refused_with_a_reason(server: Running, raw: bytes, pa
     _still_answers(server)
 
 
+@pytest.mark.parametrize(
+    ("method", "path"),
+    [
+        ("POST", "/api/cameras"),
+        ("PATCH", "/api/cameras/1"),
+        ("POST", "/api/cameras/1/activate"),
+        ("POST", "/api/cameras/1/stop"),
+        ("POST", "/api/snapshots/delete"),
+    ],
+)
+@pytest.mark.parametrize("content_type", ["application/octet-stream", "text/plain"])
+def test_a_body_that_is_not_json_is_refused_not_a_server_error(
+    server: Running, method: str, path: str, content_type: str
+) -> None:
+    # Refused as a body of the wrong kind; its echo in the 422 once failed on bytes that
+    # are no UTF-8, and the client got a 500.
+    added = httpx.post(f"{server.base}/api/cameras", json={"name": "n", "source": "demo"})
+    path = path.replace("/1", f"/{added.json()['id']}")
+    response = httpx.request(
+        method,
+        f"{server.base}{path}",
+        content=b"\xff\xfe not json \x80",
+        headers={"content-type": content_type},
+        timeout=10,
+    )
+    assert response.status_code == 422, response.text
+    _still_answers(server)
+
+
 @FUZZ
 @given(params=filters, item=ids, body=json_values)
 def test_event_and_snapshot_queries_never_fail_the_server(

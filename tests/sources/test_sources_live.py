@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import contextlib
 import socket
 import threading
 import time
@@ -226,13 +227,51 @@ def test_a_folder_of_images_loops_by_name(tmp_path: Path) -> None:
     again = open_source(parse_source(str(folder)))
     for _ in range(11):
         assert again.read().image().shape == (48, 64, 3)
-    with pytest.raises(FrameError, match=r"f99\.png is 128x96, the first frame was 64x48"):
-        again.read()
+    # A camera whose resolution was changed goes on at the new size, loop after loop.
+    assert again.read().image().shape == (96, 128, 3)
     assert again.read().image().shape == (48, 64, 3), "then it goes on, from the first"
+    for name in [p.name for p in folder.iterdir()]:
+        (folder / name).unlink()
+    for _ in range(11):
+        with contextlib.suppress(FrameError):  # Gone since the loop began.
+            again.read()
+    with pytest.raises(SourceError, match="no image frames in folder"):
+        again.read()
     again.close()
     (tmp_path / "empty").mkdir()
     with pytest.raises(SourceError, match="no image frames in folder"):
         open_source(parse_source(str(tmp_path / "empty")))
+
+
+def with_orientation(jpeg: bytes, orientation: int) -> bytes:
+    """``jpeg`` with an EXIF segment saying how to turn it (6: a quarter turn clockwise)."""
+    ifd = b"\x00\x01" + b"\x01\x12\x00\x03\x00\x00\x00\x01" + bytes([0, orientation, 0, 0])
+    tiff = b"MM\x00\x2a\x00\x00\x00\x08" + ifd + b"\x00\x00\x00\x00"
+    segment = b"Exif\x00\x00" + tiff
+    return jpeg[:2] + b"\xff\xe1" + (len(segment) + 2).to_bytes(2, "big") + segment + jpeg[2:]
+
+
+def test_a_jpeg_turned_by_exif_is_upright_in_a_folder_and_as_its_header_from_a_camera(
+    tmp_path: Path,
+) -> None:
+    # A phone picture is stored sideways with a tag to turn it. In a folder it is
+    # upright, as `vigil analyze` reads it; a camera's JPEG is the picture its header
+    # describes, or boxes found on one would be drawn on the other.
+    picture = np.zeros((48, 64, 3), np.uint8)
+    picture[:, :32] = 250
+    ok, encoded = cv2.imencode(".jpg", picture)
+    assert ok
+    turned = with_orientation(encoded.tobytes(), 6)
+    folder = tmp_path / "phone"
+    folder.mkdir()
+    for index in range(2):
+        (folder / f"{index}.jpg").write_bytes(turned)
+    frame = open_source(parse_source(str(folder))).read()
+    assert frame.size == (48, 64) and frame.image().shape == (64, 48, 3)
+    assert frame.image()[:32].mean() > 200 and frame.image()[32:].mean() < 50
+    assert JpegFrame(turned).size == (64, 48)
+    assert JpegFrame(turned).image().shape == (48, 64, 3)
+    assert JpegFrame(turned).gray(32).shape == (24, 32)  # Detection's scaled decode too.
 
 
 def test_file_errors_are_readable(tmp_path: Path) -> None:

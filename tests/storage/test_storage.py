@@ -73,6 +73,7 @@ def test_event_filters_select_events_that_overlap_the_window(tmp_path: Path) -> 
     assert ids(since=1e9) == [running]
     assert ids(since=60, until=100) == [across, early]  # The ends of the window count.
     assert [e["id"] for e in db.events(camera_id=1, since=105)] == [across]
+    assert ids(since=105, until=100) == [], "a window that ends before it starts holds none"
     db.close()
 
 

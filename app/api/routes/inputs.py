@@ -107,7 +107,9 @@ async def validation_error(request: Request, exc: Exception) -> JSONResponse:
     long inputs cut to ``ECHO_LIMIT`` characters, and a file sent without a file name
     said so."""
     assert isinstance(exc, RequestValidationError)  # What it is registered for.
-    errors = _masked(jsonable_encoder(exc.errors()))
+    # A body that is no JSON is echoed as bytes, which need not be UTF-8.
+    as_text = {bytes: lambda data: data.decode("utf-8", "replace")}
+    errors = _masked(jsonable_encoder(exc.errors(), custom_encoder=as_text))
     for error in errors:
         if NOT_A_FILE in str(error.get("msg", "")):
             error["msg"] = "expected a file: a multipart part with a file name"

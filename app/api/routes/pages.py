@@ -9,6 +9,7 @@ from fastapi.responses import FileResponse, HTMLResponse
 from fastapi.templating import Jinja2Templates
 
 import app as vigil_package
+from app.api.routes.inputs import MAX_MIN_AREA
 from app.api.services import services
 from app.vision.motion import DEFAULT_METHOD, METHODS
 
@@ -29,6 +30,7 @@ def dashboard(request: Request) -> HTMLResponse:
             "methods": list(METHODS),
             "default_method": DEFAULT_METHOD,
             "max_upload_mb": svc.settings.max_upload_mb,
+            "max_min_area": MAX_MIN_AREA,
         },
     )
 

@@ -92,11 +92,13 @@ BACKGROUND, ALTERNATE, WEIGHT, DEVIATION = range(4)
 MODEL = 4
 
 # Its 8-bit planes (``STATE`` x height x width): frames each pixel has been still (to
-# 255), objects that stopped (``age_still_regions``), pixels that stir, and the raw
-# motion, in two planes that take turns holding the previous frame's (``RAW``).
+# 255), objects that stopped (``age_still_regions``), pixels that stir, the raw motion,
+# in two planes that take turns holding the previous frame's (``RAW``), and frames left
+# of the ghost step's guard where a pixel stirred lately (``STIRRED``).
 SETTLED, STOPPED, STIRRING = range(3)
 RAW = (3, 4)
-STATE = 5
+STIRRED = 5
+STATE = 6
 
 # A frame's outputs (``OUTPUTS`` x height x width, 8-bit): the difference to the nearer
 # mode, and the mask.
@@ -122,7 +124,8 @@ RATES = 12
 
 # Whole-number settings of a frame (``settings``), by index: learn only (``step``),
 # while the scene is being learned, anything moved last frame, the ghost step's reach,
-# settle frames and margin, this frame's raw plane, the gain's grid step.
+# settle frames and margin, this frame's raw plane, the gain's grid step, and the frames
+# the ghost step stays guarded where a pixel stirred.
 (
     LEARN_ONLY,
     LEARNING,
@@ -132,8 +135,9 @@ RATES = 12
     MARGIN,
     RAW_PLANE,
     GAIN_STEP,
-) = range(8)
-SETTINGS = 8
+    GUARD_FRAMES,
+) = range(9)
+SETTINGS = 9
 
 # Float64 bounds of ``step`` (``bounds``): the gain's inlier limit, and the moving
 # pixels past which the frame is only compared.
@@ -212,6 +216,8 @@ def step(
     background, alternate = model[BACKGROUND], model[ALTERNATE]
     weight, deviation = model[WEIGHT], model[DEVIATION]
     settled, stopped, stirring_out = state[SETTLED], state[STOPPED], state[STIRRING]
+    stirred = state[STIRRED]
+    guard_frames = settings[GUARD_FRAMES]
     raw_plane = settings[RAW_PLANE]
     raw_out = state[raw_plane]
     previous_raw = state[RAW[0] + RAW[1] - raw_plane]
@@ -238,7 +244,7 @@ def step(
             previous_rows[y] = _holds_any(previous_mask[y])
     strong_rows = np.zeros(rows, np.bool_)
     moving_rows = np.zeros(rows, np.bool_)
-    stirring_rows = np.zeros(rows, np.bool_)
+    guarded_rows = np.zeros(rows, np.bool_)
     moving = 0
     for ahead in range(rows + LIMIT_AHEAD + GHOST_BEHIND):
         if ahead < rows:
@@ -307,12 +313,21 @@ def step(
             count = _count_above(mask_out, learned, np.float32(0.0))
             moving += count
             moving_rows[learned] = count > 0
-            _stirring_row(gray, lagged, rings[_CHANGING, at], level, stirring_out, learned)
-            stirring_rows[learned] = _holds_any(stirring_out[learned])
+            _stirring_row(
+                gray,
+                lagged,
+                rings[_CHANGING, at],
+                level,
+                guard_frames,
+                stirring_out,
+                stirred,
+                learned,
+            )
+            guarded_rows[learned] = _holds_any(stirred[learned])
         ghost = learned - GHOST_BEHIND
         if 0 <= ghost < rows and moving_rows[ghost]:
-            if _any_near(stirring_rows, ghost, GUARD_REACH):
-                _column_extreme(stirring_out, ghost, GUARD_REACH, rows, True, row)
+            if _any_near(guarded_rows, ghost, GUARD_REACH):
+                _column_extreme(stirred, ghost, GUARD_REACH, rows, True, row)
                 _spread_row(row, GUARD_REACH, True, near_stirring)
             else:
                 near_stirring[:] = 0
@@ -559,14 +574,21 @@ def _stirring_row(
     lagged: GrayImage,
     changing: Mask,
     level: np.float32,
+    guard_frames: int,
     out: Mask,
+    stirred: np.ndarray,
     y: int,
 ) -> None:
     """Row ``y``'s pixels that changed since the previous frame (``changing``) or since
-    ``lagged``."""
+    ``lagged``, into ``out``; and in ``stirred``, frames left of the ghost step's guard:
+    ``guard_frames`` where a pixel stirs, one fewer each frame it does not."""
+    start = np.uint8(guard_frames)
     for x in range(gray.shape[1]):
         drift = abs(np.float32(gray[y, x]) - np.float32(lagged[y, x]))
-        out[y, x] = np.uint8(255) if (changing[x] != 0) | (drift > level) else np.uint8(0)
+        stirs = (changing[x] != 0) | (drift > level)
+        out[y, x] = np.uint8(255) if stirs else np.uint8(0)
+        left = stirred[y, x]
+        stirred[y, x] = start if stirs else left - np.uint8(left > 0)
 
 
 @compiled_helper
@@ -598,14 +620,15 @@ def _absorb_ghosts_row(
     frame, and the variability learned while a ghost's object left has made its
     rim deaf, hiding the true background from a 3x3 search for seconds.
 
-    Near pixels that are changing, now or slowly (``near_stirring``: an object on
-    the move), only neighbours that have been still for ``settle_frames`` frames
-    (``settled``) count: where a camouflaged object matches the background at a
-    point of its rim, that point is absorbed with the object's grey, and would
-    otherwise pass the match on, ring by ring, through the object's unchanging
-    inside. An object that has ``stopped`` (``age_still_regions``) is left whole:
-    eaten from its rim, its border would come to run through its own inside,
-    where it looks like a ghost.
+    Near pixels that are changing, now or slowly, or did a few frames ago
+    (``near_stirring``: an object on the move, or one that stopped and is not yet
+    judged by the stale-region check), only neighbours that have been still for
+    ``settle_frames`` frames (``settled``) count: where a camouflaged object
+    matches the background at a point of its rim, that point is absorbed with the
+    object's grey, and would otherwise pass the match on, ring by ring, through the
+    object's unchanging inside. An object that has ``stopped``
+    (``age_still_regions``) is left whole: eaten from its rim, its border would
+    come to run through its own inside, where it looks like a ghost.
     """
     rows, cols = mask.shape
     first, end = 0, cols  # From the row's first moving pixel to its last (it has one).

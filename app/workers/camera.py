@@ -307,8 +307,10 @@ class CameraWorker:
                 self._alarm(alarms.current, live, result, now)
             if update.ended is not None:
                 self._motion_end(update.ended)
-        elif now_mono >= self._next_glance:
-            # At detection size: a decoded 4K frame, kept nine times, would hold 75 MB.
+        if now_mono >= self._next_glance:
+            # While detecting too, so that a Stop and a quick Activate again start from
+            # the scene (the grey is detection's, decoded already). At detection size: a
+            # decoded 4K frame, kept nine times, would hold 75 MB.
             self._glances.append(GLANCE_SIZE(frame.gray(PipelineConfig.detect_width)))
             self._next_glance = now_mono + self.settings.scene_glance_s
         self.hub.publish(live)
@@ -364,10 +366,9 @@ class CameraWorker:
     def _start_from_glances(self, pipeline: Pipeline) -> None:
         """The scene as the last glances show it, for detection to start from: someone
         walking when Activate is pressed is motion, not background that leaves a ghost."""
-        glances, self._glances = self._glances, deque(maxlen=GLANCES)
         if not pipeline.starts_from_scene:
             return
-        scene = estimate_recent_scene([pipeline.prepare(glance) for glance in glances])
+        scene = estimate_recent_scene([pipeline.prepare(glance) for glance in self._glances])
         if scene is not None:
             pipeline.start_from(scene)
 

@@ -225,18 +225,30 @@ WALKING_ACROSS = Scene(
 )
 
 
-def _detections_after_activate(tmp_path: Path, glance_s: float) -> dict[int, int]:
-    """Run the camera idle for 2.2 s, activate it, and count the objects on each of its
-    frames for the next 2 s (frame number -> detections)."""
+def _detections_after_activate(
+    tmp_path: Path, glance_s: float, stopped_before: bool = False
+) -> dict[int, int]:
+    """Run the camera idle for 2.2 s, activate it (``stopped_before``: activate it at
+    1.2 s, stop it at 2.2 s and activate it again at once), and count the objects on each
+    of its frames for the next 2 s (frame number -> detections)."""
     parts = worker_parts(tmp_path, scene_glance_s=glance_s)
     video = write_scene_video(WALKING_ACROSS, tmp_path / "walking.avi")
     worker = make_worker(parts, str(video))
     seen: dict[int, int] = {}
     worker.start()
     try:
-        wait_for(lambda: worker.frames >= 55, 10, "the camera to run idle")
+        if stopped_before:
+            wait_for(lambda: worker.frames >= 30, 10, "the camera to run idle")
+            worker.set_active(True)
+            wait_for(lambda: worker.frames >= 55, 10, "the camera to detect")
+            worker.set_active(False)
+            stopped_at = worker.frames
+            wait_for(lambda: worker.frames > stopped_at, 10, "a frame after the stop")
+        else:
+            wait_for(lambda: worker.frames >= 55, 10, "the camera to run idle")
+        processed = worker.processed
         worker.set_active(True)
-        wait_for(lambda: worker.processed > 0, 10, "detection to start")
+        wait_for(lambda: worker.processed > processed, 10, "detection to start")
         until = time.monotonic() + 2.0
         while time.monotonic() < until:
             latest = worker.hub.latest
@@ -259,3 +271,12 @@ def test_someone_in_view_at_activate_is_motion_and_leaves_no_ghost(tmp_path: Pat
     # where the walker stood, a ghost.
     first_frame = _detections_after_activate(tmp_path / "no-glances", glance_s=1000.0)
     assert max(first_frame.values()) >= 2, first_frame
+
+
+def test_activate_again_right_after_stop_starts_from_the_scene(tmp_path: Path) -> None:
+    # A Stop and an Activate a moment later, the walker in view: the glances go on
+    # while the camera detects, so the scene is known, and where the walker stood at
+    # the second Activate there is no ghost.
+    seen = _detections_after_activate(tmp_path, glance_s=0.2, stopped_before=True)
+    assert len(seen) >= 30, "the frames after Activate were not seen"
+    assert max(seen.values()) == 1, seen

@@ -62,8 +62,8 @@ class Settings(BaseSettings):
     """How often each camera reports its state, frame rate and motion on /ws."""
     default_min_area: float = 100.0
     scene_glance_s: float = Field(default=1.0, gt=0)
-    """How often an idle camera keeps a grey frame: at Activate, the median of the last
-    ones is the scene, so what is in view then and moving leaves no ghost."""
+    """How often a camera keeps a grey frame (idle or detecting): at Activate, the median
+    of the last ones is the scene, so what is in view then and moving leaves no ghost."""
 
     retention_days: float = Field(default=30.0, ge=0)
     """Snapshots and finished events older than this are deleted (0 = keep forever)."""

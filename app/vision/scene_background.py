@@ -31,8 +31,8 @@ there, each end about its own median (a robust median deviation, so a sample
 with an object passing does not count, nor does light that drifted between the
 ends): leaves that sway are known from the first frame on.
 
-A live camera cannot look ahead, but it can look back: while idle it keeps a
-grey frame now and then, and at Activate the median of the last few is the
+A live camera cannot look ahead, but it can look back: it keeps a grey frame
+now and then, and at Activate the median of the last few is the
 scene (``estimate_recent_scene``): what walked through them is not in it, what
 stands still is, and nobody in view when Activate is pressed leaves a ghost.
 """

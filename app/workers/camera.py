@@ -59,7 +59,7 @@ late at most), before another frame."""
 SETTING_FIELDS = ("sensitivity", "min_area", "method", "show_mask", "mask")
 
 GLANCES = 9
-"""Grey frames an idle camera keeps (one every ``scene_glance_s``) for the scene at
+"""Grey frames a camera keeps (one every ``scene_glance_s``) for the scene at
 Activate: enough that someone who stood still for a few of them is not the scene."""
 GLANCE_SIZE = Downscale(PipelineConfig.detect_width)
 
@@ -309,9 +309,12 @@ class CameraWorker:
                 self._motion_end(update.ended)
         if now_mono >= self._next_glance:
             # While detecting too, so that a Stop and a quick Activate again start from
-            # the scene (the grey is detection's, decoded already). At detection size: a
-            # decoded 4K frame, kept nine times, would hold 75 MB.
-            self._glances.append(GLANCE_SIZE(frame.gray(PipelineConfig.detect_width)))
+            # the scene (a JPEG's grey is detection's, decoded already). At detection
+            # size: a decoded 4K frame, kept nine times, would hold 75 MB.
+            glance = GLANCE_SIZE(frame.gray(PipelineConfig.detect_width))
+            if self._glances and self._glances[-1].shape != glance.shape:
+                self._glances.clear()  # The picture's size changed: another view.
+            self._glances.append(glance)
             self._next_glance = now_mono + self.settings.scene_glance_s
         self.hub.publish(live)
         if now_mono - self._last_status >= self.settings.status_interval_s:

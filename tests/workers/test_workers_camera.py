@@ -7,6 +7,9 @@ import time
 from pathlib import Path
 from typing import Any
 
+import numpy as np
+
+from app.sources.frames import DecodedFrame
 from app.sources.synthetic import MovingObject, Scene
 from app.storage import Database
 from app.workers.camera import DETECTION_WARMING, PLAIN_SLEEP_S, PREPARING, CameraWorker
@@ -280,3 +283,27 @@ def test_activate_again_right_after_stop_starts_from_the_scene(tmp_path: Path) -
     seen = _detections_after_activate(tmp_path, glance_s=0.2, stopped_before=True)
     assert len(seen) >= 30, "the frames after Activate were not seen"
     assert max(seen.values()) == 1, seen
+
+
+def test_a_picture_that_changes_size_while_detecting_does_not_fail_the_next_activate(
+    parts: dict[str, Any],
+) -> None:
+    # A stream that switches from 4:3 to 16:9 while the camera detects: the glances
+    # then held two sizes, and an Activate after a Stop failed stacking them.
+    parts["settings"].scene_glance_s = 0.01
+    worker = make_worker(parts, "demo")
+    rng = np.random.default_rng(1)
+
+    def frame(width: int, height: int) -> DecodedFrame:
+        return DecodedFrame(rng.integers(100, 110, (height, width, 3), dtype=np.uint8))
+
+    worker.set_active(True)
+    for size in [(640, 480)] * 12 + [(1280, 720)] * 3:
+        worker._handle(frame(*size))
+        time.sleep(0.012)
+    worker.set_active(False)
+    worker._handle(frame(1280, 720))
+    worker.set_active(True)
+    processed = worker.processed
+    worker._handle(frame(1280, 720))  # Activate again: detection starts, no failure.
+    assert worker.processed == processed + 1

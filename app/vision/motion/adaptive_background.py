@@ -152,12 +152,14 @@ LEAST_PATTERN = 25
 """Pixels: a stale region smaller than this (a 5x5 patch) shows no pattern to tell an
 object by, and is absorbed after ``relit_after`` frames (the specks a lamp leaves)."""
 
-CLEAR_EDGE = 1.5
+CLEAR_EDGE = 1.75
 """A stopped object is kept whole (out of the ghost step's reach) where the frame steps
 across its border at least this many times as much as the background does: clearly an
 object's outline, not a ghost's that happens to run along the scene's own edges (a
 ghost's frame steps less than its background). A person whose clothes are 40 grey levels
-from a textured ground's mean measured 1.5 to 2 at the first check after they stopped."""
+from a textured ground's mean measured 1.5 to 2 at the first check after they stopped;
+at 1.5, a soft spot of lamplight on such ground was sometimes kept too (for
+``absorb_after`` frames)."""
 
 NEAR_MOTION_DEVIATION_SHARE = 0.3
 """The share of ``deviation_rate`` at which still pixels next to motion teach it."""
@@ -313,7 +315,7 @@ class AdaptiveBackground(MotionMethod):
         # then keeps it whole); longer, and a ghost joined to the object it came from is
         # eaten late. Not while the scene is learned: what stirs then is mostly ghosts
         # of what was in the first frame.
-        settings[kernels.GUARD_FRAMES] = 1 if learning else self.check_every // 2 + 1
+        settings[kernels.GUARD_FRAMES] = 1 if learning else min(self.check_every // 2 + 1, 255)
         self._set_threshold(threshold, rates, settings)
         bounds = np.empty(kernels.BOUNDS)
         bounds[kernels.GAIN_LIMIT] = GAIN_INLIERS * threshold

@@ -238,14 +238,12 @@ class Database:
         is in if it ended at ``since`` or later, or is still open (``ended_at`` null)."""
         if since is not None and until is not None and since > until:
             return []  # An empty window, as the snapshots' filter has it.
-        where, params = _filters("started_at", camera_id, None, until)
-        if since is not None:
-            where += " AND " if where else "WHERE "
-            where += "(ended_at IS NULL OR ended_at >= ?)"
-            params.append(since)
+        clauses, params = _filters(
+            camera_id, since, until, "(ended_at IS NULL OR ended_at >= ?)", "started_at <= ?"
+        )
         rows = self._query(
-            f"SELECT * FROM events {where} ORDER BY started_at DESC, id DESC"  # noqa: S608
-            " LIMIT ?",
+            f"SELECT * FROM events{_where(clauses)}"  # noqa: S608
+            " ORDER BY started_at DESC, id DESC LIMIT ?",
             (*params, limit),
         )
         return [_event(r) for r in rows]
@@ -272,18 +270,14 @@ class Database:
         ids: Sequence[int] | None = None,
         limit: int = 500,
     ) -> list[dict[str, Any]]:
-        where, params = _filters("ts", camera_id, since, until)
-        clauses = [where[len("WHERE ") :]] if where else []
+        clauses, params = _filters(camera_id, since, until, "ts >= ?", "ts <= ?")
         if kind:
             clauses.append("kind = ?")
             params.append(kind)
         if ids is not None:
             clauses.append(f"id IN ({', '.join('?' for _ in ids) or 'NULL'})")
             params.extend(ids)
-        sql = "SELECT * FROM snapshots"
-        if clauses:
-            sql += " WHERE " + " AND ".join(clauses)
-        sql += " ORDER BY ts DESC, id DESC LIMIT ?"
+        sql = f"SELECT * FROM snapshots{_where(clauses)} ORDER BY ts DESC, id DESC LIMIT ?"  # noqa: S608
         return [dict(r) for r in self._query(sql, (*params, limit))]
 
     def snapshot(self, snapshot_id: int) -> dict[str, Any] | None:
@@ -365,20 +359,27 @@ class Database:
 
 
 def _filters(
-    column: str, camera_id: int | None, since: float | None, until: float | None
-) -> tuple[str, list[Any]]:
+    camera_id: int | None,
+    since: float | None,
+    until: float | None,
+    since_clause: str,
+    until_clause: str,
+) -> tuple[list[str], list[Any]]:
+    """A listing's filters as SQL clauses (to be joined with AND) and their parameters:
+    the camera, and the window, whose ends the clauses test (each with one ``?``): that
+    a row ends no earlier than ``since`` and starts no later than ``until``."""
     clauses: list[str] = []
     params: list[Any] = []
-    if camera_id is not None:
-        clauses.append("camera_id = ?")
-        params.append(camera_id)
-    if since is not None:
-        clauses.append(f"{column} >= ?")
-        params.append(since)
-    if until is not None:
-        clauses.append(f"{column} <= ?")
-        params.append(until)
-    return ("WHERE " + " AND ".join(clauses) if clauses else "", params)
+    given = (("camera_id = ?", camera_id), (since_clause, since), (until_clause, until))
+    for clause, value in given:
+        if value is not None:
+            clauses.append(clause)
+            params.append(value)
+    return clauses, params
+
+
+def _where(clauses: Sequence[str]) -> str:
+    return " WHERE " + " AND ".join(clauses) if clauses else ""
 
 
 def _camera(row: sqlite3.Row) -> dict[str, Any]:

@@ -13,7 +13,7 @@ import logging
 import threading
 import time
 from collections import deque
-from typing import Any
+from typing import Any, NamedTuple
 
 import cv2
 
@@ -64,6 +64,13 @@ Activate: enough that someone who stood still for a few of them is not the scene
 GLANCE_SIZE = Downscale(PipelineConfig.detect_width)
 
 
+class EventRow(NamedTuple):
+    """An open event's row in the database: its id, and its ``started_at`` (wall time)."""
+
+    id: int
+    started_at: float
+
+
 class CameraWorker:
     def __init__(
         self,
@@ -103,8 +110,8 @@ class CameraWorker:
         self._times: deque[float] = deque(maxlen=64)
         self._pipeline: Pipeline | None = None
         self._alarms: AlarmLogic | None = None
-        self._event_rows: dict[int, tuple[int, float]] = {}
-        """The open events' rows: the alarm logic's event id -> (row id, started_at)."""
+        self._event_rows: dict[int, EventRow] = {}
+        """The open events' rows, by the alarm logic's event id."""
         self._activated_at = 0.0
         self._last_status = 0.0
         self._source: FrameSource | None = None
@@ -405,10 +412,9 @@ class CameraWorker:
         row = self._event_rows.get(event.id)
         if row is None:
             track_ids = sorted(d.track_id for d in detections if d.track_id is not None)
-            event_id = self.db.add_event(self.camera_id, now, boxes, event.max_area, track_ids)
-            self._event_rows[event.id] = (event_id, now)
-        else:
-            event_id = row[0]
+            row_id = self.db.add_event(self.camera_id, now, boxes, event.max_area, track_ids)
+            row = self._event_rows[event.id] = EventRow(row_id, now)
+        event_id = row.id
         failing_before = self.snapshots.failure(self.camera_id)
         ids: dict[str, int] = {}
         for kind, image in (("frame", picture), ("difference", difference)):
@@ -463,12 +469,11 @@ class CameraWorker:
         row = self._event_rows.pop(event.id, None)
         if row is None:
             return
-        event_id, started_at = row
-        ended_at = started_at + max(0.0, event.end_time_s - event.start_time_s)
-        self.db.end_event(event_id, ended_at, event.max_area, sorted(event.track_ids))
+        ended_at = row.started_at + max(0.0, event.end_time_s - event.start_time_s)
+        self.db.end_event(row.id, ended_at, event.max_area, sorted(event.track_ids))
         self.bus.publish(
             motion_end_message(
-                self.camera_id, event_id, ended_at, ended_at - started_at, event.max_area
+                self.camera_id, row.id, ended_at, ended_at - row.started_at, event.max_area
             )
         )
 

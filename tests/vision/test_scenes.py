@@ -138,7 +138,7 @@ def test_a_soft_spot_of_lamplight_is_taken_in_and_not_kept_as_an_object(seed, br
     for index in range(scene.frames):
         frame = scene.frame(index).astype(np.float64)
         if index >= 60:
-            frame += light[..., None] if frame.ndim == 3 else light
+            frame += light[..., None]  # On each channel of the scene's colour frame.
         result = pipeline.process(np.clip(frame, 0, 255).astype(np.uint8))
         if index >= 60 and result.detections:
             reported.append(index - 60)

@@ -10,9 +10,9 @@ from __future__ import annotations
 from typing import Annotated, Any
 
 from fastapi import APIRouter, HTTPException, Request, Response
-from pydantic import BaseModel, ConfigDict, Field, field_validator
+from pydantic import BaseModel, Field, field_validator
 
-from app.api.routes.inputs import StrictJsonRoute, check_min_area, is_control
+from app.api.routes.inputs import STRICT, StrictJsonRoute, check_min_area, is_control
 from app.api.services import services
 from app.sources.live import MASK, has_masked_password, parse_source, with_stored_password
 from app.vision.motion import DEFAULT_METHOD, METHODS
@@ -57,12 +57,6 @@ def _check_new_source(value: str) -> str:
             f" (one that really is {MASK} is written %2A%2A%2A)"
         )
     return value
-
-
-STRICT = ConfigDict(extra="forbid", strict=True)
-"""A misspelt setting is an error, not ignored; and a value must be of its field's JSON
-type, not coerced: ``"10"`` or ``true`` is no sensitivity, ``"yes"`` or ``1`` no
-``show_mask``. A whole number is a number (``10`` for ``10.0``)."""
 
 
 class CameraIn(BaseModel):

@@ -20,6 +20,7 @@ from fastapi.encoders import jsonable_encoder
 from fastapi.exceptions import RequestValidationError
 from fastapi.responses import JSONResponse
 from fastapi.routing import APIRoute
+from pydantic import ConfigDict
 
 from app.sources.live import without_password
 
@@ -32,6 +33,11 @@ CameraFilter = Annotated[int | None, Query(ge=0, le=MAX_ID)]
 """``camera_id`` in a listing's filters."""
 TimeFilter = Annotated[float | None, Query(allow_inf_nan=False)]
 """``since`` and ``until``: Unix seconds, finite."""
+STRICT = ConfigDict(extra="forbid", strict=True)
+"""Every JSON body's model: a misspelt field is an error, not ignored; and a value must be
+of its field's JSON type, not coerced: ``"10"`` or ``true`` is no sensitivity, ``"yes"`` or
+``1`` no ``show_mask``, ``"1"`` no snapshot id. A whole number is a number (``10`` for
+``10.0``)."""
 MAX_MIN_AREA = 7680 * 4320
 """The largest ``min_area``: an 8K frame's pixels (33,177,600). An object must cover at
 least ``min_area`` pixels of the input frame, so a larger value can never be met and

@@ -9,9 +9,16 @@ from typing import Annotated, Any
 
 from fastapi import APIRouter, HTTPException, Query, Request
 from fastapi.responses import FileResponse, StreamingResponse
-from pydantic import BaseModel, ConfigDict, Field
+from pydantic import BaseModel, Field
 
-from app.api.routes.inputs import MAX_ID, MAX_IDS, CameraFilter, StrictJsonRoute, TimeFilter
+from app.api.routes.inputs import (
+    MAX_ID,
+    MAX_IDS,
+    STRICT,
+    CameraFilter,
+    StrictJsonRoute,
+    TimeFilter,
+)
 from app.api.services import Services, services
 from app.storage.files import stream_zip
 
@@ -101,7 +108,7 @@ def snapshot_file(request: Request, snapshot_id: int) -> FileResponse:
 
 
 class DeleteRequest(BaseModel):
-    model_config = ConfigDict(extra="forbid", strict=True)  # As the camera routes' bodies.
+    model_config = STRICT
 
     ids: list[Annotated[int, Field(ge=0, le=MAX_ID)]] = Field(min_length=1, max_length=MAX_IDS)
 

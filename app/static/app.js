@@ -33,6 +33,8 @@ const state = {
   alarmItems: new Map(),   // event key -> alarm list entry
   analyses: new Map(),     // id -> element
   newestEventTs: 0,        // the latest event start (server clock) the page has heard of
+  statuses: new Map(),     // id -> {at, fields}: a camera's latest /ws status, when it came
+  listedAt: 0,             // when the camera listing last shown was asked for
 };
 
 /* ---------- HTTP ---------- */
@@ -222,17 +224,25 @@ function cameraName(id) {
 }
 
 async function loadCameras() {
+  const askedAt = performance.now();
   try {
     const cameras = await api("GET", "/api/cameras");
+    // Answers may come out of order, and a status message that came after the question
+    // is newer than the answer: neither may put back a camera's earlier state.
+    if (askedAt < state.listedAt) return;
+    state.listedAt = askedAt;
     state.camerasLoaded = true;
     const seen = new Set();
     for (const camera of cameras) {
       seen.add(camera.id);
-      state.cameras.set(camera.id, { ...(state.cameras.get(camera.id) || {}), ...camera });
+      const status = state.statuses.get(camera.id);
+      const newer = status && status.at > askedAt ? status.fields : {};
+      state.cameras.set(camera.id, { ...(state.cameras.get(camera.id) || {}), ...camera, ...newer });
     }
     for (const id of Array.from(state.cameras.keys())) {
       if (!seen.has(id)) {
         state.cameras.delete(id);
+        state.statuses.delete(id);
         const card = state.cards.get(id);
         if (card) {
           stopPictures(card);
@@ -890,6 +900,8 @@ function connect() {
 }
 
 function onCameraStatus(message) {
+  const { type, camera_id: _, storage_error: __, ...fields } = message;
+  state.statuses.set(message.camera_id, { at: performance.now(), fields });
   const camera = state.cameras.get(message.camera_id);
   if (!camera) {
     loadCameras();
@@ -900,7 +912,6 @@ function onCameraStatus(message) {
       ? `<b>Snapshots of ${escapeHtml(camera.name)} not saved:</b> ${escapeHtml(message.storage_error)}`
       : `Snapshots of ${escapeHtml(camera.name)} are saved again`, message.storage_error ? "error" : "info");
   }
-  const { type, camera_id: _, storage_error: __, ...fields } = message;
   Object.assign(camera, fields);
   updateCard(state.cards.get(message.camera_id), camera);
   recordMotion(message.camera_id, Date.now() / 1000, message.motion || 0);

@@ -7,6 +7,7 @@ from collections.abc import Iterator
 from pathlib import Path
 
 import cv2
+import numpy as np
 import pytest
 
 from app.sources.synthetic import Scene
@@ -51,3 +52,21 @@ def decode_all(path: Path) -> Iterator:
             yield frame
     finally:
         capture.release()
+
+
+def lamplight(
+    size: tuple[int, int], brightness: float, spread: float, centre: tuple[float, float]
+) -> np.ndarray:
+    """A lamp's soft spot of light on a picture of ``size`` (width, height): grey levels
+    added per pixel, ``brightness`` at ``centre`` (fractions of the width and height),
+    falling off as a Gaussian of ``spread`` pixels."""
+    width, height = size
+    rows, cols = np.mgrid[0:height, 0:width]
+    distance = (cols - centre[0] * width) ** 2 + (rows - centre[1] * height) ** 2
+    return brightness * np.exp(-distance / (2 * spread**2))
+
+
+def lit(frame: np.ndarray, light: np.ndarray) -> np.ndarray:
+    """``frame`` (BGR or grey, 8-bit) with ``light`` added to each channel."""
+    added = light[..., None] if frame.ndim == 3 else light
+    return np.clip(frame.astype(np.float64) + added, 0, 255).astype(np.uint8)

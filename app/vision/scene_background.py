@@ -35,6 +35,10 @@ A live camera cannot look ahead, but it can look back: it keeps a grey frame
 now and then, and at Activate the median of the last few is the
 scene (``estimate_recent_scene``): what walked through them is not in it, what
 stands still is, and nobody in view when Activate is pressed leaves a ghost.
+Where the newest few (the frame at Activate among them) agree on something
+else, the scene changed lately: a lamp came on, a car drove off. There the
+newest picture is the scene unless it shows an object's outline across the
+region's border (someone who stopped just before is motion, not scene).
 """
 
 from __future__ import annotations
@@ -73,6 +77,14 @@ CAMERA_MOVED_PX = 1.5
 
 LEAST_SHIFT_SIDE = 16
 """Pixels: a picture narrower (or lower) than this is not searched for a shifted view."""
+
+RECENT_SAMPLES = 3
+"""The newest samples whose median shows the scene as it is now (a live camera's)."""
+
+RECENT_OUTLINE = 1.75
+"""The newest picture steps across a region's border at least this many times as much as
+the older one does: it shows an object's outline there (the adaptive model's
+``CLEAR_EDGE``), and the older picture is the scene; a light that came on barely steps."""
 
 LEAST_REGION = 16
 """Pixels: a region of disagreement smaller than this has no border to judge it by."""
@@ -150,20 +162,29 @@ def estimate_scene_background(samples: Sequence[GrayImage]) -> SceneBackground |
 
 def estimate_recent_scene(samples: Sequence[GrayImage]) -> SceneBackground | None:
     """The scene as grey frames sampled over the last moments show it (a live camera's,
-    at Activate, which cannot look ahead): their median, so what moved through them is
-    not in it and what stood still is (a parked car is scene, not motion), and each
-    pixel's median deviation from it as its variability. None with fewer than
+    at Activate, which cannot look ahead; the newest last): their median, so what moved
+    through them is not in it and what stood still is (a parked car is scene, not
+    motion), and each pixel's median deviation from it as its variability. Where the
+    median of the newest ``RECENT_SAMPLES`` differs, region by region, that is the scene
+    unless it shows an object's outline (``RECENT_OUTLINE``). None with fewer than
     ``END_SAMPLES`` samples, or where the newest differs from the median over more than
     ``VIEW_CHANGED_SHARE`` of the picture (the view changed among them, or something big
     stands in it now: the model then learns the first frame, as without samples)."""
     if len(samples) < END_SAMPLES:
         return None
     stack = np.stack(samples)
-    background = _median(stack)
-    deviation = _median_deviation(stack, background)
+    settled = _median(stack)
+    deviation = _median_deviation(stack, settled)
     agreement = _agreement(float(np.median(deviation)))
-    if np.mean(np.abs(stack[-1] - background) > agreement) > VIEW_CHANGED_SHARE:
+    if np.mean(np.abs(stack[-1] - settled) > agreement) > VIEW_CHANGED_SHARE:
         return None
+    newest = stack[-RECENT_SAMPLES:]
+    recent = _median(newest)
+    difference = np.abs(recent - settled)
+    # With its fringe (half as far, joined to it): a soft light's edge is scene too.
+    disagree = _grown(difference > agreement / 2, difference > agreement)
+    background, shows_settled = _pick_ends(settled, recent, disagree, stack, RECENT_OUTLINE)
+    deviation = np.where(shows_settled, deviation, _median_deviation(newest, recent))
     return SceneBackground(
         np.ascontiguousarray(background, np.float32),
         np.ascontiguousarray(MEAN_ABS_PER_MEDIAN_ABS * deviation, np.float32),
@@ -208,13 +229,18 @@ def _same_view(stack: np.ndarray, start: FloatImage, agreement: float) -> int:
 
 
 def _pick_ends(
-    start: FloatImage, end: FloatImage, disagree: np.ndarray, stack: np.ndarray
+    start: FloatImage,
+    end: FloatImage,
+    disagree: np.ndarray,
+    stack: np.ndarray,
+    end_outline: float = 1.0,
 ) -> tuple[FloatImage, np.ndarray]:
     """The background, and where it is the start's picture. Where the ends agree it is
     the start's: what the first frame shows (the light may have drifted a little by the
     end). Where they disagree, region by region, the end that continues the region's
-    surroundings (or the median of all samples, for a region too small to judge, where
-    the start's spread stands for its variability)."""
+    surroundings: the end's, unless it steps across the region's border ``end_outline``
+    times as much as the start's or more (or the median of all samples, for a region
+    too small to judge, where the start's spread stands for its variability)."""
     background = start.copy()
     shows_start = np.ones(start.shape, bool)
     regions, labels, stats, _ = cv2.connectedComponentsWithStats(
@@ -238,11 +264,20 @@ def _pick_ends(
             continue
         shape = inside.astype(np.uint8)
         border = cv2.dilate(shape, ring) != cv2.erode(shape, ring)
-        take_end = edges_end[box][border].mean() < edges_start[box][border].mean()
+        take_end = edges_end[box][border].mean() < end_outline * edges_start[box][border].mean()
         chosen = end if take_end else start
         background[box][inside] = chosen[box][inside]
         shows_start[box][inside] = not take_end
     return background, shows_start
+
+
+def _grown(weak: np.ndarray, strong: np.ndarray) -> np.ndarray:
+    """The regions of ``weak`` that hold a pixel of ``strong`` (a subset of weak)."""
+    regions, labels = cv2.connectedComponents(weak.astype(np.uint8), connectivity=8)
+    holds_strong = np.zeros(regions, bool)
+    holds_strong[labels[strong]] = True
+    holds_strong[0] = False
+    return holds_strong[labels]
 
 
 def _agreement(median_stray: float) -> float:

@@ -283,7 +283,7 @@ class CameraWorker:
     def _handle(self, frame: SourceFrame) -> None:
         now_mono = time.monotonic()
         now = time.time()
-        self._apply_pending(getattr(self._source, "fps", 25.0))
+        self._apply_pending(getattr(self._source, "fps", 25.0), frame)
         self.frames += 1
         self._times.append(now_mono)
         if len(self._times) >= 2 and self._times[-1] > self._times[0]:
@@ -316,9 +316,8 @@ class CameraWorker:
                 self._motion_end(update.ended)
         if now_mono >= self._next_glance:
             # While detecting too, so that a Stop and a quick Activate again start from
-            # the scene (a JPEG's grey is detection's, decoded already). At detection
-            # size: a decoded 4K frame, kept nine times, would hold 75 MB.
-            glance = GLANCE_SIZE(frame.gray(PipelineConfig.detect_width))
+            # the scene.
+            glance = _glance(frame)
             if self._glances and self._glances[-1].shape != glance.shape:
                 self._glances.clear()  # The picture's size changed: another view.
             self._glances.append(glance)
@@ -327,7 +326,7 @@ class CameraWorker:
         if now_mono - self._last_status >= self.settings.status_interval_s:
             self._publish_status()
 
-    def _apply_pending(self, fps: float) -> None:
+    def _apply_pending(self, fps: float, frame: SourceFrame) -> None:
         with self._lock:
             pending, self._pending = self._pending, {}
             want_active = self._want_active
@@ -341,7 +340,7 @@ class CameraWorker:
             return
         if want_active and self._pipeline is None:
             self._pipeline = self._new_pipeline(fps)
-            self._start_from_glances(self._pipeline)
+            self._start_from_glances(self._pipeline, frame)
             self._alarms = AlarmLogic(self.settings.quiet_s, self.settings.alarm_gap_s)
             self._activated_at = time.monotonic()
         elif not want_active and self._pipeline is not None:
@@ -373,12 +372,15 @@ class CameraWorker:
         )
         return Pipeline(config, fps)
 
-    def _start_from_glances(self, pipeline: Pipeline) -> None:
-        """The scene as the last glances show it, for detection to start from: someone
-        walking when Activate is pressed is motion, not background that leaves a ghost."""
+    def _start_from_glances(self, pipeline: Pipeline, frame: SourceFrame) -> None:
+        """The scene as the last glances and ``frame`` (the newest) show it, for
+        detection to start from: someone walking when Activate is pressed is motion, not
+        background that leaves a ghost; a lamp that came on a moment ago is scene."""
         if not pipeline.starts_from_scene:
             return
-        scene = estimate_recent_scene([pipeline.prepare(glance) for glance in self._glances])
+        now = _glance(frame)
+        glances = [glance for glance in self._glances if glance.shape == now.shape]
+        scene = estimate_recent_scene([pipeline.prepare(glance) for glance in [*glances, now]])
         if scene is not None:
             pipeline.start_from(scene)
 
@@ -553,3 +555,10 @@ def _detection(d: Detection) -> dict[str, Any]:
         "speed_px_s": round(d.speed_px_s, 2),
         "distance_px": round(d.distance_px, 2),
     }
+
+
+def _glance(frame: SourceFrame) -> GrayImage:
+    """A grey frame to keep for the scene at Activate. At detection size: a decoded 4K
+    frame, kept nine times, would hold 75 MB (and a JPEG's grey is detection's, decoded
+    already)."""
+    return GLANCE_SIZE(frame.gray(PipelineConfig.detect_width))

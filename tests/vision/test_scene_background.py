@@ -16,6 +16,7 @@ from app.vision.scene_background import (
     estimate_recent_scene,
     estimate_scene_background,
 )
+from tests.conftest import lamplight, lit
 
 CLOSE = 6.0
 """Grey levels: an estimate this near the empty scene is right (the camera noise is 2)."""
@@ -135,6 +136,44 @@ def test_a_live_camera_s_recent_scene_leaves_out_who_walked_through():
     stood = replace(scene, objects=(standing,), noise_sigma=0.0).frame(0)
     truth = Pipeline(fps=scene.fps).prepare(stood).astype(np.float32)
     assert share_right(recent, truth) >= 0.995
+
+
+def test_a_light_that_came_on_just_before_activate_is_scene():
+    # A lamp came on over part of the view two glances before Activate: the median of
+    # the glances still shows it off, and the lit patch was motion for half a second.
+    scene = Scene("lamp", frames=100)
+    light = lamplight(scene.size, 50.0, 35.0, (0.3, 0.4))
+    pipeline = Pipeline(fps=scene.fps)
+    frames = [scene.frame(index) for index in range(0, 91, 10)]
+    glances = [pipeline.prepare(f) for f in frames[:7]]
+    glances += [pipeline.prepare(lit(f, light)) for f in frames[7:]]
+    recent = estimate_recent_scene(glances)
+    assert recent is not None
+    truth = pipeline.prepare(lit(replace(scene, noise_sigma=0.0).frame(0), light))
+    assert share_right(recent, truth.astype(np.float32)) >= 0.995
+    # And the lit patch is no more variable than the rest of the ground.
+    assert np.percentile(recent.variability, 99.5) < 4.0
+
+
+@pytest.mark.parametrize("intensity", [200, 60])
+def test_someone_who_stopped_just_before_activate_is_not_scene(intensity):
+    # In the newest three glances, still: the median of those shows them, but they are
+    # an outline on the ground, not a change of the scene.
+    stopped = MovingObject((140, 90), (0.0, 0.0), (24, 56), intensity, first_frame=70)
+    scene = Scene("stopped", frames=100, objects=(stopped,))
+    recent = estimate_recent_scene(glances_of(scene, range(0, 91, 10)))
+    assert recent is not None
+    assert share_right(recent, empty_scene(scene)) >= 0.995
+
+
+def test_a_car_that_drove_off_just_before_activate_is_not_scene():
+    # Parked through the first seven glances, gone from the newest three: the median
+    # of all shows it, and where it stood a ghost would be reported.
+    parked = MovingObject((120, 90), (0.0, 0.0), (80, 50), 60, last_frame=65)
+    scene = Scene("drove-off", frames=100, objects=(parked,))
+    recent = estimate_recent_scene(glances_of(scene, range(0, 91, 10)))
+    assert recent is not None
+    assert share_right(recent, empty_scene(scene)) >= 0.995
 
 
 def test_a_live_camera_s_recent_scene_needs_enough_glances_of_one_view():

@@ -4,12 +4,12 @@ from __future__ import annotations
 
 import statistics
 
-import numpy as np
 import pytest
 
 from app.sources.synthetic import MovingObject, Scene, standard_scenes
 from app.vision.metrics import ObjectCounts, match_boxes
 from app.vision.pipeline import Pipeline, PipelineConfig
+from tests.conftest import lamplight, lit
 
 SCENES = standard_scenes()
 WITH_OBJECTS = [name for name, scene in SCENES.items() if scene.objects]
@@ -129,17 +129,12 @@ def test_a_soft_spot_of_lamplight_is_taken_in_and_not_kept_as_an_object(seed, br
     # stopped object, when the test of an object's outline was looser (CLEAR_EDGE
     # 1.5). Some spots still are (2 of 72 such spots: README, what it does not do).
     scene = Scene(name="lamp-spot", fps=25.0, frames=220, seed=seed)
-    width, height = scene.size
-    rows, cols = np.mgrid[0:height, 0:width]
-    centre = ((cols - width / 2) ** 2 + (rows - height / 2) ** 2) / (2 * spread**2)
-    light = brightness * np.exp(-centre)
+    light = lamplight(scene.size, brightness, spread, (0.5, 0.5))
     pipeline = Pipeline(PipelineConfig(), fps=scene.fps)
     reported = []
     for index in range(scene.frames):
-        frame = scene.frame(index).astype(np.float64)
-        if index >= 60:
-            frame += light[..., None]  # On each channel of the scene's colour frame.
-        result = pipeline.process(np.clip(frame, 0, 255).astype(np.uint8))
+        frame = scene.frame(index)
+        result = pipeline.process(lit(frame, light) if index >= 60 else frame)
         if index >= 60 and result.detections:
             reported.append(index - 60)
     assert not reported or reported[-1] <= 60, reported

@@ -15,7 +15,7 @@ from app.storage import Database
 from app.workers.camera import DETECTION_WARMING, PLAIN_SLEEP_S, PREPARING, CameraWorker
 from app.workers.hub import viewer_jpeg
 from tests.api.vigil_livekit import FPS, MjpegCamera, wait_for, write_video
-from tests.conftest import write_scene_video
+from tests.conftest import lamplight, lit, write_scene_video
 from tests.workers.conftest import make_worker, worker_parts
 
 
@@ -283,6 +283,27 @@ def test_activate_again_right_after_stop_starts_from_the_scene(tmp_path: Path) -
     seen = _detections_after_activate(tmp_path, glance_s=0.2, stopped_before=True)
     assert len(seen) >= 30, "the frames after Activate were not seen"
     assert max(seen.values()) == 1, seen
+
+
+def test_a_lamp_that_came_on_just_before_activate_is_not_motion(parts: dict[str, Any]) -> None:
+    # A lamp comes on over part of the view, and Activate follows two glances later.
+    # The glances' median showed it off, so the lit patch was an object for half a
+    # second; the newest glances and the frame at Activate show it is the scene.
+    parts["settings"].scene_glance_s = 0.01
+    worker = make_worker(parts, "demo")
+    scene = Scene("lamp", fps=25.0, frames=50)
+    light = lamplight(scene.size, 50.0, 35.0, (0.3, 0.4))
+    for index in range(12):
+        picture = scene.frame(index)
+        worker._handle(DecodedFrame(lit(picture, light) if index >= 10 else picture))
+        time.sleep(0.012)  # Each frame a glance.
+    worker.set_active(True)
+    objects = []
+    for index in range(12, scene.frames):
+        worker._handle(DecodedFrame(lit(scene.frame(index), light)))
+        objects.append(worker.objects)
+    assert worker.processed == scene.frames - 12
+    assert max(objects) == 0, objects
 
 
 def test_a_picture_that_changes_size_while_detecting_does_not_fail_the_next_activate(

@@ -148,6 +148,7 @@ def analyze(
     """
     options = options or AnalysisOptions()
     source = open_input(input_path, options.fps, options.max_pixels)
+    check_min_area(options.pipeline.min_area, source.size)
     truth = load_truth(options.truth, source.frame_numbers) if options.truth else None
     if truth is not None:
         truth.check_size(source.size)
@@ -158,6 +159,17 @@ def analyze(
     if options.masks:
         (out_dir / "masks").mkdir(exist_ok=True)
     return _Analysis(source, out_dir, options, truth, progress, on_frame).run()
+
+
+def check_min_area(min_area: float, size: tuple[int, int]) -> None:
+    """InputError where no object in a frame of ``size`` could cover ``min_area``:
+    detection would be quietly off."""
+    width, height = size
+    if min_area > width * height:
+        raise InputError(
+            f"min_area {min_area:g} px is more than a frame of this video holds "
+            f"({width}x{height} = {width * height:,} px): no object could be detected"
+        )
 
 
 EARLIER_PICTURES = (

@@ -188,3 +188,13 @@ def test_the_smallest_detection_widths_are_accepted(tmp_path, walker_video, widt
     result = vigil("analyze", walker_video, "--out", out, "--detect-width", width, "--quiet")
     assert result.returncode == 0, result.stderr
     assert _report(out)["settings"]["detect_width"] == int(width)
+
+
+def test_a_min_area_larger_than_the_frame_fails_with_the_frame_s_size(tmp_path, walker_video):
+    # No object could cover it: detection would be off, the report empty, and no reason.
+    out = tmp_path / "out"
+    result = vigil("analyze", walker_video, "--out", out, "--min-area", "1e9", "--quiet")
+    assert result.returncode != 0
+    (line,) = result.stderr.splitlines()
+    assert "min_area 1e+09 px is more than a frame of this video holds (320x240" in line, line
+    assert not (out / "report.json").exists()

@@ -110,6 +110,10 @@ def test_login_sets_a_strict_session_cookie_and_logout_ends_it(
     wrong = httpx.post(f"{server.base}/api/login", json={"password": "wrong"})
     assert wrong.status_code == 401 and wrong.json() == {"detail": "wrong password"}
     assert "set-cookie" not in wrong.headers
+    # A field the login has no use for ("remember me") is refused, as in every JSON body.
+    extra = httpx.post(f"{server.base}/api/login", json={"password": PASSWORD, "remember": 1})
+    assert extra.status_code == 422 and "unknown field 'remember'" in extra.json()["detail"]
+    assert "set-cookie" not in extra.headers
     right = httpx.post(f"{server.base}/api/login", json={"password": PASSWORD})
     flags = {part.strip().lower() for part in right.headers["set-cookie"].split(";")[1:]}
     assert flags == {"httponly", "path=/", "samesite=strict"}  # no Secure over plain http

@@ -91,6 +91,9 @@ async def _credentials(request: Request) -> Credentials:
         data = None
     if not isinstance(data, dict) or not isinstance(data.get("password"), str):
         raise HTTPException(422, 'send JSON {"password": "..."}')
+    unknown = sorted(set(data) - {"password"})
+    if unknown:  # As every JSON body: a field that means nothing here is a mistake.
+        raise HTTPException(422, f'unknown field {unknown[0]!r}: send JSON {{"password": "..."}}')
     return Credentials(data["password"], "/", False)
 
 

@@ -35,10 +35,10 @@ A live camera cannot look ahead, but it can look back: it keeps a grey frame
 now and then, and at Activate the median of the last few is the
 scene (``estimate_recent_scene``): what walked through them is not in it, what
 stands still is, and nobody in view when Activate is pressed leaves a ghost.
-Where the newest few (the frame at Activate among them) agree on something
-else, the scene changed lately: a lamp came on, a car drove off. There the
-newest picture is the scene unless it shows an object's outline across the
-region's border (someone who stopped just before is motion, not scene).
+Where the newest few (the frame at Activate among them) show the same ground
+in another light (its fine texture unchanged: a lamp came on), that is the
+scene there; anything else they agree on may be someone who stopped a moment
+ago, and is left to the model.
 """
 
 from __future__ import annotations
@@ -81,10 +81,16 @@ LEAST_SHIFT_SIDE = 16
 RECENT_SAMPLES = 3
 """The newest samples whose median shows the scene as it is now (a live camera's)."""
 
-RECENT_OUTLINE = 1.75
-"""The newest picture steps across a region's border at least this many times as much as
-the older one does: it shows an object's outline there (the adaptive model's
-``CLEAR_EDGE``), and the older picture is the scene; a light that came on barely steps."""
+RELIT_CORRELATION = 0.9
+"""A region whose newest picture's fine texture correlates with the older one's at least
+this much is the same scene in another light (the adaptive model's test of a stale
+region); an object, textured or plain, hides the ground's texture."""
+
+TEXTURE_BAND = (1.0, 4.0)
+"""Pixels: a picture's texture is its blur by the first less its blur by the second, the
+detail between the camera's noise and a light's soft fall-off, which the light keeps.
+(Where the camera's noise is 6 grey levels, a lamp's texture correlates 0.98 with the
+ground's, and objects', plain or textured, -0.12 to 0.17; unblurred, the lamp's 0.85.)"""
 
 LEAST_REGION = 16
 """Pixels: a region of disagreement smaller than this has no border to judge it by."""
@@ -160,14 +166,17 @@ def estimate_scene_background(samples: Sequence[GrayImage]) -> SceneBackground |
     )
 
 
-def estimate_recent_scene(samples: Sequence[GrayImage]) -> SceneBackground | None:
+def estimate_recent_scene(
+    samples: Sequence[GrayImage], now: GrayImage | None = None
+) -> SceneBackground | None:
     """The scene as grey frames sampled over the last moments show it (a live camera's,
-    at Activate, which cannot look ahead; the newest last): their median, so what moved
-    through them is not in it and what stood still is (a parked car is scene, not
-    motion), and each pixel's median deviation from it as its variability. Where the
-    median of the newest ``RECENT_SAMPLES`` differs, region by region, that is the scene
-    unless it shows an object's outline (``RECENT_OUTLINE``). None with fewer than
-    ``END_SAMPLES`` samples, or where the newest differs from the median over more than
+    at Activate, which cannot look ahead; the newest last), and ``now``, the frame at
+    Activate: the samples' median, so what moved through them is not in it and what
+    stood still is (a parked car is scene, not motion), and each pixel's median
+    deviation from it as its variability. Where the median of the newest samples and
+    ``now`` (``RECENT_SAMPLES`` in all) shows the same in another light (``_relit``: a
+    lamp came on), that is the scene. None with fewer than ``END_SAMPLES`` samples, or
+    where the newest (``now``) differs from the median over more than
     ``VIEW_CHANGED_SHARE`` of the picture (the view changed among them, or something big
     stands in it now: the model then learns the first frame, as without samples)."""
     if len(samples) < END_SAMPLES:
@@ -176,15 +185,22 @@ def estimate_recent_scene(samples: Sequence[GrayImage]) -> SceneBackground | Non
     settled = _median(stack)
     deviation = _median_deviation(stack, settled)
     agreement = _agreement(float(np.median(deviation)))
-    if np.mean(np.abs(stack[-1] - settled) > agreement) > VIEW_CHANGED_SHARE:
+    newest = (
+        [*samples[-RECENT_SAMPLES + 1 :], now] if now is not None else samples[-RECENT_SAMPLES:]
+    )
+    if np.mean(np.abs(newest[-1] - settled) > agreement) > VIEW_CHANGED_SHARE:
         return None
-    newest = stack[-RECENT_SAMPLES:]
-    recent = _median(newest)
+    # Not in the median of all: two of them may be a moment apart, someone walking in both.
+    recent = _median(np.stack(newest))
     difference = np.abs(recent - settled)
-    # With its fringe (half as far, joined to it): a soft light's edge is scene too.
-    disagree = _grown(difference > agreement / 2, difference > agreement)
-    background, shows_settled = _pick_ends(settled, recent, disagree, stack, RECENT_OUTLINE)
-    deviation = np.where(shows_settled, deviation, _median_deviation(newest, recent))
+    # With its fringe (half as far, joined to it): a soft light's edge is relit too.
+    changed = _grown(difference > agreement / 2, difference > agreement)
+    relit = _relit(settled, recent, changed)
+    background = np.where(relit, recent, settled)
+    if relit.any():
+        # Each sample about the scene it shows, before or after the light changed.
+        either = np.minimum(np.abs(stack - settled), np.abs(stack - recent))
+        deviation = np.where(relit, _median(either), deviation)
     return SceneBackground(
         np.ascontiguousarray(background, np.float32),
         np.ascontiguousarray(MEAN_ABS_PER_MEDIAN_ABS * deviation, np.float32),
@@ -229,18 +245,13 @@ def _same_view(stack: np.ndarray, start: FloatImage, agreement: float) -> int:
 
 
 def _pick_ends(
-    start: FloatImage,
-    end: FloatImage,
-    disagree: np.ndarray,
-    stack: np.ndarray,
-    end_outline: float = 1.0,
+    start: FloatImage, end: FloatImage, disagree: np.ndarray, stack: np.ndarray
 ) -> tuple[FloatImage, np.ndarray]:
     """The background, and where it is the start's picture. Where the ends agree it is
     the start's: what the first frame shows (the light may have drifted a little by the
     end). Where they disagree, region by region, the end that continues the region's
-    surroundings: the end's, unless it steps across the region's border ``end_outline``
-    times as much as the start's or more (or the median of all samples, for a region
-    too small to judge, where the start's spread stands for its variability)."""
+    surroundings (or the median of all samples, for a region too small to judge, where
+    the start's spread stands for its variability)."""
     background = start.copy()
     shows_start = np.ones(start.shape, bool)
     regions, labels, stats, _ = cv2.connectedComponentsWithStats(
@@ -264,11 +275,38 @@ def _pick_ends(
             continue
         shape = inside.astype(np.uint8)
         border = cv2.dilate(shape, ring) != cv2.erode(shape, ring)
-        take_end = edges_end[box][border].mean() < end_outline * edges_start[box][border].mean()
+        take_end = edges_end[box][border].mean() < edges_start[box][border].mean()
         chosen = end if take_end else start
         background[box][inside] = chosen[box][inside]
         shows_start[box][inside] = not take_end
     return background, shows_start
+
+
+def _relit(before: FloatImage, after: FloatImage, changed: np.ndarray) -> np.ndarray:
+    """The regions of ``changed`` where ``after`` is ``before`` in another light: their
+    fine textures correlate by ``RELIT_CORRELATION`` or more. None too thin to tell
+    (under ``LEAST_REGION`` pixels more than 2 from its edge): a strip along an object's
+    outline, where it stood a moment apart, shares the outline's blur."""
+    regions, labels = cv2.connectedComponents(changed.astype(np.uint8), connectivity=8)
+    relit = np.zeros(regions, bool)
+    if regions > 1:
+        texture_before, texture_after = _texture(before), _texture(after)
+        core = cv2.erode(changed.astype(np.uint8), np.ones((5, 5), np.uint8)) > 0
+        thick = np.bincount(labels[core], minlength=regions) >= LEAST_REGION
+        for region in np.flatnonzero(thick[1:]) + 1:
+            inside = labels == region
+            a, b = texture_before[inside], texture_after[inside]
+            spread = float(a.std()) * float(b.std())
+            if spread > 0.0:
+                together = float(np.mean((a - a.mean()) * (b - b.mean()))) / spread
+                relit[region] = together >= RELIT_CORRELATION
+    return relit[labels]
+
+
+def _texture(image: FloatImage) -> FloatImage:
+    """The detail of ``image`` that a soft light keeps (``TEXTURE_BAND``)."""
+    fine, coarse = TEXTURE_BAND
+    return cv2.GaussianBlur(image, (0, 0), fine) - cv2.GaussianBlur(image, (0, 0), coarse)
 
 
 def _grown(weak: np.ndarray, strong: np.ndarray) -> np.ndarray:

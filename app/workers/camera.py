@@ -63,6 +63,10 @@ GLANCES = 9
 Activate: enough that someone who stood still for a few of them is not the scene."""
 GLANCE_SIZE = Downscale(PipelineConfig.detect_width)
 
+MEASURED_FRAMES = 16
+"""Frames whose times give the camera's frame rate for detection (its times of day, such
+as how long a stopped person is kept, are counted in frames)."""
+
 
 class EventRow(NamedTuple):
     """An open event's row in the database: its id, and its ``started_at`` (wall time)."""
@@ -283,7 +287,7 @@ class CameraWorker:
     def _handle(self, frame: SourceFrame) -> None:
         now_mono = time.monotonic()
         now = time.time()
-        self._apply_pending(getattr(self._source, "fps", 25.0), frame)
+        self._apply_pending(frame)
         self.frames += 1
         self._times.append(now_mono)
         if len(self._times) >= 2 and self._times[-1] > self._times[0]:
@@ -326,7 +330,7 @@ class CameraWorker:
         if now_mono - self._last_status >= self.settings.status_interval_s:
             self._publish_status()
 
-    def _apply_pending(self, fps: float, frame: SourceFrame) -> None:
+    def _apply_pending(self, frame: SourceFrame) -> None:
         with self._lock:
             pending, self._pending = self._pending, {}
             want_active = self._want_active
@@ -339,7 +343,7 @@ class CameraWorker:
         if waiting:
             return
         if want_active and self._pipeline is None:
-            self._pipeline = self._new_pipeline(fps)
+            self._pipeline = self._new_pipeline(self._frame_rate())
             self._start_from_glances(self._pipeline, frame)
             self._alarms = AlarmLogic(self.settings.quiet_s, self.settings.alarm_gap_s)
             self._activated_at = time.monotonic()
@@ -361,6 +365,13 @@ class CameraWorker:
             pipeline.set_min_area(float(self._config["min_area"]))
         if self._config["mask"] != old["mask"]:
             pipeline.set_ignore_zones(as_polygons(self._config["mask"]))
+
+    def _frame_rate(self) -> float:
+        """Frames a second, as measured once ``MEASURED_FRAMES`` have come (an MJPEG
+        stream's header says 25 whatever the camera sends), else as the source says."""
+        if len(self._times) >= MEASURED_FRAMES and self.fps > 0:
+            return self.fps
+        return float(getattr(self._source, "fps", 25.0))
 
     def _new_pipeline(self, fps: float) -> Pipeline:
         config = PipelineConfig(

@@ -200,3 +200,22 @@ def test_a_lane_that_look_alike_objects_cross_every_second_stays_seen():
     coverage = [s / n for s, n in zip(seen, shown, strict=True)]
     assert coverage[0] > 0.9, coverage
     assert min(coverage[-4:]) > 0.5, coverage
+
+
+@pytest.mark.parametrize("fps", [10.0, 25.0, 60.0])
+def test_a_person_who_waits_is_kept_about_five_seconds_whatever_the_frame_rate(fps):
+    # The model's counts of frames stand for times, given at 25 fps: at 60 fps a
+    # waiting person was taken into the background after 2.1 s, at 10 fps after 12.5.
+    walker = MovingObject((-40, 90), (100.0, 0.0), (30, 60), 60, stop=(2.0, 11.0))
+    scene = Scene("wait", fps=fps, frames=int(11 * fps), objects=(walker,))
+    pipeline = Pipeline(PipelineConfig(), fps=fps)
+    seen_after = []  # Seconds into the wait of each frame the person is seen in.
+    for index in range(scene.frames):
+        result = pipeline.process(scene.frame(index))
+        waited = index / fps - 2.0
+        if waited >= 0 and result.detections:
+            seen_after.append(waited)
+    assert min(seen_after) < 0.1 and 4.5 <= max(seen_after) <= 6.0, (
+        min(seen_after),
+        max(seen_after),
+    )

@@ -8,6 +8,7 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
+import pytest
 
 from app.sources.frames import DecodedFrame
 from app.sources.synthetic import MovingObject, Scene
@@ -328,3 +329,23 @@ def test_a_picture_that_changes_size_while_detecting_does_not_fail_the_next_acti
     processed = worker.processed
     worker._handle(frame(1280, 720))  # Activate again: detection starts, no failure.
     assert worker.processed == processed + 1
+
+
+def test_detection_counts_time_at_the_rate_the_camera_sends(parts: dict[str, Any]) -> None:
+    # An MJPEG stream's header says nothing of its rate (OpenCV takes 25): a camera
+    # sending 10 frames a second would keep a waiting person 12.5 s instead of 5.
+    camera = MjpegCamera(fps=10.0).start()
+    worker = make_worker(parts, camera.url)
+    worker.start()
+    try:
+        wait_for(lambda: worker.frames >= 20, 15, "the camera to run")
+        worker.set_active(True)
+        wait_for(lambda: worker.processed > 0, 15, "detection to start")
+        pipeline = worker._pipeline
+        assert pipeline is not None
+        assert 8.5 <= pipeline.fps <= 11.5, pipeline.fps
+        assert worker._source is not None and worker._source.fps != pytest.approx(10.0, abs=1.5)
+    finally:
+        worker.request_stop()
+        worker.join(5)
+        camera.stop()

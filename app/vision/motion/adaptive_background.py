@@ -72,6 +72,12 @@ A running-average background (the classic of Motion and of OpenCV's
   ghost step's reach, where its outline is clearly an object's, and stays kept
   (until ``absorb_after``) while it stays still.
 
+The counts of frames that stand for times (``absorb_after``, ``relit_after``,
+``check_every``, ``settle_frames``) are given at 25 fps and scaled to the
+video's rate, so a person waiting is kept 5 s at 10 fps and at 60 fps alike;
+the rates and the frames the scene is learned over count frames, samples of
+the scene, whatever the rate.
+
 The per-pixel work is compiled (``adaptive_kernels``): most frames take one
 call, neighbourhood steps included; this class decides what the rare frames
 that change almost everywhere teach, and keeps the model and its state in a few
@@ -92,7 +98,7 @@ import numpy as np
 from app.vision.mask_box import motion_box
 from app.vision.motion import adaptive_kernels as kernels
 from app.vision.motion.adaptive_kernels import GUARD_REACH, LEARNING_REACH
-from app.vision.motion.base import MotionMethod, MotionResult
+from app.vision.motion.base import REFERENCE_FPS, MotionMethod, MotionResult, in_frames
 from app.vision.scene_background import END_SAMPLES, SceneBackground
 from app.vision.types import FloatImage, GrayImage, Mask
 from app.vision.view_shift import VIEW_SHIFT_REACH, shift_explains, shifted
@@ -188,8 +194,9 @@ class AdaptiveBackground(MotionMethod):
         check_every: int = 6,
         learning_frames: int = 20,
         settle_frames: int = 10,
+        fps: float = REFERENCE_FPS,
     ) -> None:
-        super().__init__(sensitivity)
+        super().__init__(sensitivity, fps)
         # 3.5 sigma, not the usual 4: the per-pixel variability, not a higher
         # global threshold, is what keeps swaying pixels quiet here.
         self.noise.k = k
@@ -202,13 +209,13 @@ class AdaptiveBackground(MotionMethod):
         self.mode_weight = mode_weight
         self.deviation_rate = deviation_rate
         self.weak_fraction = weak_fraction
-        self.absorb_after = absorb_after
-        self.relit_after = relit_after
-        self.check_every = check_every
+        self.absorb_after = in_frames(absorb_after, fps)
+        self.relit_after = in_frames(relit_after, fps)
+        self.check_every = in_frames(check_every, fps)
         self.learning_frames = learning_frames
         if not 0 <= settle_frames <= 255:
             raise ValueError(f"settle_frames counts to 255 at most, not {settle_frames}")
-        self.settle_frames = settle_frames
+        self.settle_frames = min(in_frames(settle_frames, fps), 255) if settle_frames else 0
         guard = 2 * GUARD_REACH + 1
         self._guard_kernel = np.ones((guard, guard), np.uint8)
         self._model: np.ndarray | None = None

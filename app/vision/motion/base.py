@@ -31,12 +31,23 @@ class MotionResult:
     global_change: bool = False
 
 
+REFERENCE_FPS = 25.0
+"""The frame rate a method's counts of frames are given at: at the video's own rate
+(``fps``), a count that stands for a time is scaled to last as long (``in_frames``)."""
+
+
+def in_frames(count: int, fps: float) -> int:
+    """``count`` frames at ``REFERENCE_FPS``, as frames at ``fps`` lasting as long (one
+    at least)."""
+    return max(1, round(count * fps / REFERENCE_FPS))
+
+
 class MotionMethod(ABC):
     """Segmentation: grey frame in, motion mask out.
 
     ``sensitivity`` is the grey-level threshold (1..255; lower is more
     sensitive). ``None`` means automatic: the threshold follows the noise
-    measured in the method's own difference image.
+    measured in the method's own difference image. ``fps``: the video's frame rate.
     """
 
     name: ClassVar[str]
@@ -45,9 +56,10 @@ class MotionMethod(ABC):
     """Whether ``seed`` takes a scene (the others learn from the first frame whatever
     they are given)."""
 
-    def __init__(self, sensitivity: float | None = None) -> None:
+    def __init__(self, sensitivity: float | None = None, fps: float = REFERENCE_FPS) -> None:
         self.noise = NoiseEstimator()
         self.sensitivity = sensitivity
+        self.fps = fps
 
     @property
     def sensitivity(self) -> float | None:

@@ -5,7 +5,7 @@ from __future__ import annotations
 import cv2
 import numpy as np
 
-from app.vision.motion.base import MotionMethod, MotionResult, threshold_difference
+from app.vision.motion.base import REFERENCE_FPS, MotionMethod, MotionResult, threshold_difference
 from app.vision.types import GrayImage
 
 
@@ -13,8 +13,8 @@ class FrameDifference(MotionMethod):
     name = "frame-difference"
     description = "the paper's two-frame difference: fast, misses slow and uniform objects"
 
-    def __init__(self, sensitivity: float | None = None) -> None:
-        super().__init__(sensitivity)
+    def __init__(self, sensitivity: float | None = None, fps: float = REFERENCE_FPS) -> None:
+        super().__init__(sensitivity, fps)
         self._previous: GrayImage | None = None
 
     def apply(self, gray: GrayImage) -> MotionResult:

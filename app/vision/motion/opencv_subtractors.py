@@ -6,7 +6,7 @@ from typing import Any
 
 import cv2
 
-from app.vision.motion.base import MotionMethod, MotionResult
+from app.vision.motion.base import REFERENCE_FPS, MotionMethod, MotionResult
 from app.vision.types import GrayImage
 
 # Without a sensitivity each model keeps OpenCV's own tuned default; with one,
@@ -15,9 +15,9 @@ MOG2_TYPICAL_NOISE_SIGMA = 3.0
 
 
 class _OpenCVSubtractor(MotionMethod):
-    def __init__(self, sensitivity: float | None = None) -> None:
+    def __init__(self, sensitivity: float | None = None, fps: float = REFERENCE_FPS) -> None:
         self._model: Any = None
-        super().__init__(sensitivity)
+        super().__init__(sensitivity, fps)
         self._model = self._create()
 
     def _create(self) -> Any:

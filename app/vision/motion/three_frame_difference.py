@@ -11,7 +11,7 @@ from collections import deque
 import cv2
 import numpy as np
 
-from app.vision.motion.base import MotionMethod, MotionResult, threshold_difference
+from app.vision.motion.base import REFERENCE_FPS, MotionMethod, MotionResult, threshold_difference
 from app.vision.types import GrayImage
 
 
@@ -19,8 +19,8 @@ class ThreeFrameDifference(MotionMethod):
     name = "three-frame"
     description = "difference against the two previous frames: fewer ghosts than two-frame"
 
-    def __init__(self, sensitivity: float | None = None) -> None:
-        super().__init__(sensitivity)
+    def __init__(self, sensitivity: float | None = None, fps: float = REFERENCE_FPS) -> None:
+        super().__init__(sensitivity, fps)
         self._history: deque[GrayImage] = deque(maxlen=2)
 
     def apply(self, gray: GrayImage) -> MotionResult:

@@ -55,6 +55,13 @@ class PipelineConfig:
     A live camera turns it off: its histogram viewers measure the frames they draw."""
 
 
+WHOLE_VIEW_SHARE = 0.8
+"""Motion over more than this share of the view, from a method that does not judge such
+changes itself (``judges_whole_view``), is the view changing at once (a flash, a light
+switched, the method's first frames: OpenCV's KNN calls the whole of its first frames
+motion), not objects: none are reported from it, and no track takes its size."""
+
+
 @dataclass(frozen=True, slots=True)
 class FrameResult:
     index: int
@@ -140,7 +147,9 @@ class Pipeline:
         scale = (frame_width or gray.shape[1]) / small.shape[1]
         motion: MotionResult = clock("segment", self.method.apply, small)
         mask = clock("zones", self.zones, motion.mask)
-        if cv2.countNonZero(mask):
+        moving = cv2.countNonZero(mask)
+        whole_view = not self.method.judges_whole_view and moving > WHOLE_VIEW_SHARE * mask.size
+        if moving and not whole_view:
             mask = clock("morphology", self.morphology, mask)
             blobs = clock("blobs", self.blobs, mask, scale)
         else:  # Most frames of a quiet scene: nothing to clean or measure.
@@ -158,7 +167,7 @@ class Pipeline:
             gray,
             stats,
             motion.threshold,
-            motion.global_change,
+            motion.global_change or whole_view,
             scale,
         )
 

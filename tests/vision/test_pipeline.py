@@ -3,6 +3,7 @@ import numpy as np
 import pytest
 
 from app.sources.synthetic import MovingObject, Scene
+from app.vision.metrics import ObjectCounts
 from app.vision.pipeline import Pipeline, PipelineConfig
 
 SCENE = Scene(
@@ -100,3 +101,22 @@ def test_method_swap_keeps_tracks_and_sensitivity():
     pipeline.set_method("knn")
     assert pipeline.method.name == "knn" and pipeline.method.sensitivity == 20
     assert pipeline.process(SCENE.frame(15)).index == 15
+
+
+@pytest.mark.parametrize("method", ["knn", "mog2"])
+def test_objects_apart_stay_apart_after_a_method_calls_a_whole_frame_motion(method):
+    # OpenCV's KNN calls the whole of its first frames motion: a track took the frame's
+    # size, and every object after it was joined into its one box (4 walkers in rows
+    # as one 606x372 box at 3 px/s).
+    walkers = tuple(
+        MovingObject((-30 - 20 * row, 20 + 55 * row), (80.0, 0.0), (24, 40), 60 + 40 * row)
+        for row in range(4)
+    )
+    scene = Scene("rows", frames=100, objects=walkers)
+    pipeline = Pipeline(PipelineConfig(method=method), fps=scene.fps)
+    counts = ObjectCounts()
+    for index in range(scene.frames):
+        result = pipeline.process(scene.frame(index))
+        if index >= 30:
+            counts.add([t.box for t in scene.truth(index)], [d.box for d in result.detections])
+    assert counts.detection_rate >= 0.8 and counts.false_alarm_rate <= 0.2, counts.as_dict()

@@ -174,6 +174,7 @@ NEAR_MOTION_DEVIATION_SHARE = 0.3
 class AdaptiveBackground(MotionMethod):
     name = "adaptive"
     starts_from_scene = True
+    judges_whole_view = True
     description = (
         "two-mode selective running average with per-pixel variability, "
         "light-switch and ghost handling (default)"

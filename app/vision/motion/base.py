@@ -55,6 +55,11 @@ class MotionMethod(ABC):
     starts_from_scene: ClassVar[bool] = False
     """Whether ``seed`` takes a scene (the others learn from the first frame whatever
     they are given)."""
+    judges_whole_view: ClassVar[bool] = False
+    """Whether the method tells a change of the whole view (a light switched, the camera
+    knocked) from motion itself (``global_change``): what it calls motion over most of
+    the view then is motion (something covering the lens). Of the others' such frames
+    the pipeline reports nothing."""
 
     def __init__(self, sensitivity: float | None = None, fps: float = REFERENCE_FPS) -> None:
         self.noise = NoiseEstimator()

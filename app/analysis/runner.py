@@ -30,7 +30,7 @@ from app.vision.annotate import Annotator, difference_picture
 from app.vision.calibration import GroundPlane
 from app.vision.detections import Detection
 from app.vision.pipeline import FrameResult, Pipeline, PipelineConfig
-from app.vision.preprocess import to_size
+from app.vision.preprocess import Downscale, to_size
 from app.vision.scene_background import (
     LEAST_SAMPLES,
     EvenSample,
@@ -379,7 +379,8 @@ class _Analysis:
             "skipped_frames": self.source.skipped,
             "header_frames": self.source.header_frames,
             "ended_early": self.source.ended_early,
-            "warnings": input_warnings(self.source, frames),
+            "warnings": input_warnings(self.source, frames)
+            + detection_warnings(config, self.source.size),
             "fps": self.source.fps,
             "size": list(self.source.size),
             "frame_numbers": self.source.frame_numbers,
@@ -428,6 +429,28 @@ def input_warnings(source: VideoInput, frames: int) -> list[str]:
             f"its header claims (cut short, or damaged from frame {source.frames_read} on)"
         )
     return warnings
+
+
+SMALLEST_SIDE = 4.0
+"""Pixels at detection size: an object of ``min_area`` narrower than this (as a square)
+is all but wiped out by the morphology's 3x3 opening, and boxed to the nearest few
+pixels of the input frame."""
+
+
+def detection_warnings(config: PipelineConfig, size: tuple[int, int]) -> list[str]:
+    """A line where objects of ``min_area`` are too small at the detection size to be
+    found reliably, with the ``--detect-width`` that would keep them."""
+    width = size[0]
+    scale = Downscale(config.detect_width).scale_for(width)
+    side = math.sqrt(config.min_area) / scale
+    if config.min_area <= 0 or side >= SMALLEST_SIDE:
+        return []
+    wanted = min(width, math.ceil(width / scale * SMALLEST_SIDE / side / 32) * 32)
+    return [
+        f"objects of the min area ({config.min_area:g} px) are {side:.1f} px across at the "
+        f"detection size ({round(width / scale)} of {width} px wide): they may be missed, "
+        f"or boxed too large; --detect-width {wanted} (or a larger --min-area) keeps them"
+    ]
 
 
 def _frames(count: int) -> str:

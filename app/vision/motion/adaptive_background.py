@@ -8,7 +8,9 @@ A running-average background (the classic of Motion and of OpenCV's
   weak spot).
 * **Gain compensation and light-switch handling** — the background is scaled
   to the frame's brightness each frame (auto-exposure, clouds), the ratio
-  taken over pixels that were still and still look like the background; a
+  taken over pixels that were still and still look like the background, and
+  row by row where the rows' ratios spread across the frame (mains light read
+  by a rolling shutter lights the rows in bands that drift each frame); a
   change that covers most of the scene, where nothing moved before too, and
   is brighter (or darker) almost everywhere is re-learned at once instead of
   reported (a lorry filling the view differs only where it drove in; a camera
@@ -231,6 +233,7 @@ class AdaptiveBackground(MotionMethod):
         self._previous_raw = 0
         """Pixels of that plane that are set."""
         self._rings: np.ndarray | None = None
+        self._gains: np.ndarray | None = None
         self._recent: deque[GrayImage] = deque(maxlen=check_every)
         """The last ``check_every`` frames, oldest first."""
         self._previous_mask: Mask | None = None
@@ -294,7 +297,7 @@ class AdaptiveBackground(MotionMethod):
         here first.
         """
         assert self._model is not None and self._state is not None
-        assert self._rings is not None and self._recent
+        assert self._rings is not None and self._gains is not None and self._recent
         assert self._previous_mask is not None
         threshold = float(self.threshold)
         learning = self._frame_index <= self.learning_frames
@@ -346,6 +349,7 @@ class AdaptiveBackground(MotionMethod):
             self._model,
             self._state,
             self._rings,
+            self._gains,
             outputs,
             rates,
             settings,
@@ -429,6 +433,7 @@ class AdaptiveBackground(MotionMethod):
         self._raw_plane = kernels.RAW[1]
         self._previous_raw = 0
         self._rings = kernels.ring_rows(gray.shape[1])
+        self._gains = kernels.row_gains(gray.shape[0])
         self._still_frames = np.zeros(gray.shape, np.uint16)
         self._recent = deque([gray], maxlen=self.check_every)
         self._previous_mask = np.zeros_like(gray)
@@ -585,6 +590,7 @@ class AdaptiveBackground(MotionMethod):
         self._model = None
         self._state = None
         self._rings = None
+        self._gains = None
         self._recent.clear()
         self._previous_mask = None
         self._previous_raw = 0

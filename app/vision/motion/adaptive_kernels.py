@@ -145,9 +145,29 @@ GAIN_LIMIT, COMPARE_ONLY_ABOVE = range(2)
 BOUNDS = 2
 
 
+ROW_GAIN_REACH = 4
+"""Rows each way over which a row's gain is measured (``_row_gains``)."""
+
+ROW_GAIN_LEAST = 0.5
+"""The share of a row gain's samples that must look like background for it to count."""
+
+BANDS_LEAST = 0.06
+"""The least spread, as a share of the frame's gain, between the rows' gains a fifth from
+the lowest and a fifth from the highest that shows bands of light: an object that the
+last mask missed can lift the gains of its own rows, not of three fifths of them."""
+
+ROW_GAIN_SPREAD = 0.4
+"""How far, as a share of its background, a band of light may take a pixel from it."""
+
+
 def ring_rows(width: int) -> np.ndarray:
     """Scratch rows for ``step`` on frames ``width`` wide."""
     return np.empty((RING_PLANES, RING, width), np.uint8)
+
+
+def row_gains(height: int) -> np.ndarray:
+    """Each row's gain, as ``step`` measures it on frames ``height`` high."""
+    return np.ones(height, np.float32)
 
 
 @compiled
@@ -159,6 +179,7 @@ def step(
     model: np.ndarray,
     state: np.ndarray,
     rings: np.ndarray,
+    gains: FloatImage,
     outputs: np.ndarray,
     rates: np.ndarray,
     settings: np.ndarray,
@@ -179,8 +200,9 @@ def step(
     levels, the noise's mean deviation, ``k`` and the weak fraction (of a pixel's own
     threshold), the established and seed weights, the learning, mode,
     deviation and near-motion deviation rates; ``settings`` (``SETTINGS``).
-    ``outputs[DIFFERENCE]`` gets the frame's difference to the nearer mode
-    (``_compare``), ``outputs[MASK]`` the mask.
+    ``gains`` (float32, a row each) gets each row's gain (``_row_gains``), which
+    the modes are lit by. ``outputs[DIFFERENCE]`` gets the frame's difference to the
+    nearer mode (``_compare``), ``outputs[MASK]`` the mask.
 
     What a frame teaches, row by row, each step a fixed number of rows behind the
     one it reads:
@@ -208,8 +230,17 @@ def step(
         rates[GAIN] = _gain(
             gray, model[BACKGROUND], previous_mask, settings[GAIN_STEP], bounds[GAIN_LIMIT]
         )
+        _row_gains(
+            gray,
+            model[BACKGROUND],
+            previous_mask,
+            settings[GAIN_STEP],
+            bounds[GAIN_LIMIT],
+            rates[GAIN],
+            gains,
+        )
         differing = _compare(
-            gray, model, rates[GAIN], rates[ESTABLISHED_WEIGHT], rates[LEVEL], difference
+            gray, model, gains, rates[ESTABLISHED_WEIGHT], rates[LEVEL], difference
         )
         if differing > bounds[COMPARE_ONLY_ABOVE]:
             return differing, rates[GAIN], -1
@@ -290,6 +321,7 @@ def step(
             _learn_row(
                 gray,
                 previous_gray,
+                gains[learned],
                 difference,
                 rings[_PER_PIXEL, at],
                 grown,
@@ -352,14 +384,14 @@ def step(
 def _compare(
     gray: GrayImage,
     model: np.ndarray,
-    gain: np.float32,
+    gains: FloatImage,
     established_weight: np.float32,
     level: np.float32,
     difference_out: GrayImage,
 ) -> int:
-    """|frame - mode x gain| to the nearer mode (the alternate counts only once
-    established: its weight reaches ``established_weight``); returns how many pixels
-    differ by more than ``level``."""
+    """|frame - mode x its row's gain| to the nearer mode (the alternate counts only
+    once established: its weight reaches ``established_weight``); returns how many
+    pixels differ by more than ``level``."""
     moving = 0
     for y in range(gray.shape[0]):
         _nearer_difference_row(
@@ -367,7 +399,7 @@ def _compare(
             model[BACKGROUND],
             model[ALTERNATE],
             model[WEIGHT],
-            gain,
+            gains[y],
             established_weight,
             difference_out,
             y,
@@ -403,6 +435,81 @@ def _gain(
     if count == 0 or background_sum < count or frame_sum < count:
         return 1.0
     return frame_sum / background_sum
+
+
+@compiled_helper
+def _row_gains(
+    gray: GrayImage,
+    background: FloatImage,
+    previous_mask: Mask,
+    step: int,
+    limit: float,
+    gain: float,
+    out: FloatImage,
+) -> None:
+    """Each row's brightness ratio of frame to background, as ``_gain`` measures the
+    frame's (every ``step``-th pixel of a row), over the rows within ``ROW_GAIN_REACH``
+    of it: a light that flickers as a rolling shutter reads the rows lights them
+    unevenly, in bands, further from the frame's gain than ``limit``. So first over
+    pixels within ``ROW_GAIN_SPREAD`` of their background (less what ``limit`` allows),
+    then over those within ``limit`` of it lit by that first ratio. ``gain`` (the
+    frame's) where the rows hold too few (``ROW_GAIN_LEAST``), and for every row where
+    the rows' ratios spread less than ``BANDS_LEAST``: there are no bands."""
+    out[:] = np.float32(1.0)
+    _row_ratios(gray, background, previous_mask, step, limit, ROW_GAIN_SPREAD, gain, out)
+    _row_ratios(gray, background, previous_mask, step, limit, 0.0, gain, out)
+    # Without bands across much of the frame, the rows' ratios differ only where an
+    # object the last mask missed weighs on them: the frame's gain then, as before.
+    ordered = np.sort(out)
+    rows = ordered.size
+    spread = ordered[(rows * 4) // 5] - ordered[rows // 5]
+    if spread < BANDS_LEAST * gain:
+        out[:] = np.float32(gain)
+
+
+@compiled_helper
+def _row_ratios(
+    gray: GrayImage,
+    background: FloatImage,
+    previous_mask: Mask,
+    step: int,
+    limit: float,
+    spread: float,
+    gain: float,
+    out: FloatImage,
+) -> None:
+    """One pass of ``_row_gains``: a pixel counts where it is within ``limit`` plus
+    ``spread`` of its background (as a share of it) lit by its row's ``out``."""
+    rows, cols = gray.shape
+    frame_sums = np.zeros(rows + 1)
+    background_sums = np.zeros(rows + 1)
+    counts = np.zeros(rows + 1)
+    for y in range(rows):
+        frame_sum = 0.0
+        background_sum = 0.0
+        count = 0
+        lit = float(out[y])
+        for x in range(0, cols, step):
+            value = float(gray[y, x])
+            model = float(background[y, x])
+            near = abs(value - model * lit) < limit + spread * model
+            used = (previous_mask[y, x] == 0) & near
+            frame_sum += value if used else 0.0
+            background_sum += model if used else 0.0
+            count += used
+        frame_sums[y + 1] = frame_sums[y] + frame_sum
+        background_sums[y + 1] = background_sums[y] + background_sum
+        counts[y + 1] = counts[y] + count
+    for y in range(rows):
+        top = max(y - ROW_GAIN_REACH, 0)
+        bottom = min(y + ROW_GAIN_REACH + 1, rows)
+        count = counts[bottom] - counts[top]
+        frame_sum = frame_sums[bottom] - frame_sums[top]
+        background_sum = background_sums[bottom] - background_sums[top]
+        samples = (bottom - top) * ((cols + step - 1) // step)
+        usable = (count >= ROW_GAIN_LEAST * samples) & (background_sum >= count)
+        usable = usable & (frame_sum >= count)
+        out[y] = np.float32(frame_sum / background_sum if usable else gain)
 
 
 @compiled_helper
@@ -471,6 +578,7 @@ def _above_each_row(values: GrayImage, limits: GrayImage, out: Mask) -> None:
 def _learn_row(
     gray: GrayImage,
     previous_gray: GrayImage,
+    gain: np.float32,
     difference: GrayImage,
     per_pixel: GrayImage,
     grown_strong: Mask,
@@ -507,7 +615,6 @@ def _learn_row(
     ``per_pixel``, ``grown_strong``, ``solid``, ``near_motion`` and the two outs are
     rows; the rest whole images.
     """
-    gain = rates[GAIN]
     level = rates[LEVEL]
     weak_fraction = rates[WEAK_FRACTION]
     established_weight = rates[ESTABLISHED_WEIGHT]

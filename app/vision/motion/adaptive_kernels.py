@@ -145,8 +145,9 @@ GAIN_LIMIT, COMPARE_ONLY_ABOVE = range(2)
 BOUNDS = 2
 
 
-ROW_GAIN_REACH = 4
-"""Rows each way over which a row's gain is measured (``_row_gains``)."""
+ROW_GAIN_REACH = 2
+"""Sampled rows (every ``GAIN_STEP``-th) each way over which a row's gain is measured
+(``_gains``)."""
 
 ROW_GAIN_LEAST = 0.5
 """The share of a row gain's samples that must look like background for it to count."""
@@ -200,7 +201,7 @@ def step(
     levels, the noise's mean deviation, ``k`` and the weak fraction (of a pixel's own
     threshold), the established and seed weights, the learning, mode,
     deviation and near-motion deviation rates; ``settings`` (``SETTINGS``).
-    ``gains`` (float32, a row each) gets each row's gain (``_row_gains``), which
+    ``gains`` (float32, a row each) gets each row's gain (``_gains``), which
     the modes are lit by. ``outputs[DIFFERENCE]`` gets the frame's difference to the
     nearer mode (``_compare``), ``outputs[MASK]`` the mask.
 
@@ -227,17 +228,8 @@ def step(
     difference, mask_out = outputs[DIFFERENCE], outputs[MASK]
     differing = -1
     if not settings[LEARN_ONLY]:
-        rates[GAIN] = _gain(
-            gray, model[BACKGROUND], previous_mask, settings[GAIN_STEP], bounds[GAIN_LIMIT]
-        )
-        _row_gains(
-            gray,
-            model[BACKGROUND],
-            previous_mask,
-            settings[GAIN_STEP],
-            bounds[GAIN_LIMIT],
-            rates[GAIN],
-            gains,
+        rates[GAIN] = _gains(
+            gray, model[BACKGROUND], previous_mask, settings[GAIN_STEP], bounds[GAIN_LIMIT], gains
         )
         differing = _compare(
             gray, model, gains, rates[ESTABLISHED_WEIGHT], rates[LEVEL], difference
@@ -409,107 +401,107 @@ def _compare(
 
 
 @compiled_helper
-def _gain(
-    gray: GrayImage, background: FloatImage, previous_mask: Mask, step: int, limit: float
+def _gains(
+    gray: GrayImage,
+    background: FloatImage,
+    previous_mask: Mask,
+    step: int,
+    limit: float,
+    out: FloatImage,
 ) -> float:
-    """Brightness ratio of frame to background over pixels that look like background.
+    """Brightness ratio of frame to background over pixels that look like background,
+    the frame's (returned) and each row's (``out``).
 
     Pixels moving in the previous frame are left out, and so are pixels further
     than ``limit`` from the background now: an object just entering would
     otherwise drag the ratio. One pixel in ``step`` x ``step`` is plenty for a
     ratio of means, at a fraction of the cost. 1 where no pixel is left, or a
     mean is below 1.
+
+    Mains light read by a rolling shutter lights the rows unevenly, in bands that
+    drift from frame to frame, further from the frame's ratio than ``limit``. Each
+    sampled row's ratio over the sampled rows within ``ROW_GAIN_REACH`` of it is
+    taken first over pixels within ``ROW_GAIN_SPREAD`` of their background (as a
+    share of it) besides ``limit``; where those ratios spread by ``BANDS_LEAST`` or
+    more, again over pixels within ``limit`` of their background lit by them, and
+    each row takes its nearest sampled row's. Elsewhere (no bands: the rows' ratios
+    differ only where an object the last mask missed weighs on them), and for rows
+    with too few pixels to tell (``ROW_GAIN_LEAST``), the frame's.
     """
+    rows, cols = gray.shape
+    sampled = (rows + step - 1) // step
+    per_row = (cols + step - 1) // step
+    sums = np.zeros((3, sampled + 1))  # Running sums of frame, background, count.
     frame_sum = 0.0
     background_sum = 0.0
     count = 0
-    rows, cols = gray.shape
-    for y in range(0, rows, step):
+    for row in range(sampled):
+        y = row * step
+        row_frame = 0.0
+        row_background = 0.0
+        row_count = 0
         for x in range(0, cols, step):  # Selects, not branches: which way is a toss-up.
             value = float(gray[y, x])
             model = float(background[y, x])
-            used = (previous_mask[y, x] == 0) & (abs(value - model) < limit)
+            still = previous_mask[y, x] == 0
+            off = abs(value - model)
+            used = still & (off < limit)
             frame_sum += value if used else 0.0
             background_sum += model if used else 0.0
             count += used
-    if count == 0 or background_sum < count or frame_sum < count:
-        return 1.0
-    return frame_sum / background_sum
-
-
-@compiled_helper
-def _row_gains(
-    gray: GrayImage,
-    background: FloatImage,
-    previous_mask: Mask,
-    step: int,
-    limit: float,
-    gain: float,
-    out: FloatImage,
-) -> None:
-    """Each row's brightness ratio of frame to background, as ``_gain`` measures the
-    frame's (every ``step``-th pixel of a row), over the rows within ``ROW_GAIN_REACH``
-    of it: a light that flickers as a rolling shutter reads the rows lights them
-    unevenly, in bands, further from the frame's gain than ``limit``. So first over
-    pixels within ``ROW_GAIN_SPREAD`` of their background (less what ``limit`` allows),
-    then over those within ``limit`` of it lit by that first ratio. ``gain`` (the
-    frame's) where the rows hold too few (``ROW_GAIN_LEAST``), and for every row where
-    the rows' ratios spread less than ``BANDS_LEAST``: there are no bands."""
-    out[:] = np.float32(1.0)
-    _row_ratios(gray, background, previous_mask, step, limit, ROW_GAIN_SPREAD, gain, out)
-    _row_ratios(gray, background, previous_mask, step, limit, 0.0, gain, out)
-    # Without bands across much of the frame, the rows' ratios differ only where an
-    # object the last mask missed weighs on them: the frame's gain then, as before.
-    ordered = np.sort(out)
-    rows = ordered.size
-    spread = ordered[(rows * 4) // 5] - ordered[rows // 5]
-    if spread < BANDS_LEAST * gain:
+            near = still & (off < limit + ROW_GAIN_SPREAD * model)
+            row_frame += value if near else 0.0
+            row_background += model if near else 0.0
+            row_count += near
+        sums[0, row + 1] = sums[0, row] + row_frame
+        sums[1, row + 1] = sums[1, row] + row_background
+        sums[2, row + 1] = sums[2, row] + row_count
+    gain = 1.0
+    if count > 0 and background_sum >= count and frame_sum >= count:
+        gain = frame_sum / background_sum
+    ratios = np.empty(sampled)
+    _windowed_ratios(sums, per_row, gain, ratios)
+    ordered = np.sort(ratios)
+    if ordered[(sampled * 4) // 5] - ordered[sampled // 5] < BANDS_LEAST * gain:
         out[:] = np.float32(gain)
-
-
-@compiled_helper
-def _row_ratios(
-    gray: GrayImage,
-    background: FloatImage,
-    previous_mask: Mask,
-    step: int,
-    limit: float,
-    spread: float,
-    gain: float,
-    out: FloatImage,
-) -> None:
-    """One pass of ``_row_gains``: a pixel counts where it is within ``limit`` plus
-    ``spread`` of its background (as a share of it) lit by its row's ``out``."""
-    rows, cols = gray.shape
-    frame_sums = np.zeros(rows + 1)
-    background_sums = np.zeros(rows + 1)
-    counts = np.zeros(rows + 1)
-    for y in range(rows):
-        frame_sum = 0.0
-        background_sum = 0.0
-        count = 0
-        lit = float(out[y])
+        return gain
+    for row in range(sampled):  # Again, within ``limit`` of the background so lit.
+        y = row * step
+        lit = ratios[row]
+        row_frame = 0.0
+        row_background = 0.0
+        row_count = 0
         for x in range(0, cols, step):
             value = float(gray[y, x])
             model = float(background[y, x])
-            near = abs(value - model * lit) < limit + spread * model
-            used = (previous_mask[y, x] == 0) & near
-            frame_sum += value if used else 0.0
-            background_sum += model if used else 0.0
-            count += used
-        frame_sums[y + 1] = frame_sums[y] + frame_sum
-        background_sums[y + 1] = background_sums[y] + background_sum
-        counts[y + 1] = counts[y] + count
+            used = (previous_mask[y, x] == 0) & (abs(value - model * lit) < limit)
+            row_frame += value if used else 0.0
+            row_background += model if used else 0.0
+            row_count += used
+        sums[0, row + 1] = sums[0, row] + row_frame
+        sums[1, row + 1] = sums[1, row] + row_background
+        sums[2, row + 1] = sums[2, row] + row_count
+    _windowed_ratios(sums, per_row, gain, ratios)
     for y in range(rows):
-        top = max(y - ROW_GAIN_REACH, 0)
-        bottom = min(y + ROW_GAIN_REACH + 1, rows)
-        count = counts[bottom] - counts[top]
-        frame_sum = frame_sums[bottom] - frame_sums[top]
-        background_sum = background_sums[bottom] - background_sums[top]
-        samples = (bottom - top) * ((cols + step - 1) // step)
-        usable = (count >= ROW_GAIN_LEAST * samples) & (background_sum >= count)
+        out[y] = np.float32(ratios[min((y + step // 2) // step, sampled - 1)])
+    return gain
+
+
+@compiled_helper
+def _windowed_ratios(sums: np.ndarray, per_row: int, gain: float, out: np.ndarray) -> None:
+    """Each sampled row's ratio of frame to background over the sampled rows within
+    ``ROW_GAIN_REACH`` of it, from running ``sums`` (frame, background, count; a row's
+    ``per_row`` samples each); ``gain`` where they hold too few (``ROW_GAIN_LEAST``)."""
+    sampled = out.size
+    for row in range(sampled):
+        top = max(row - ROW_GAIN_REACH, 0)
+        bottom = min(row + ROW_GAIN_REACH + 1, sampled)
+        frame_sum = sums[0, bottom] - sums[0, top]
+        background_sum = sums[1, bottom] - sums[1, top]
+        count = sums[2, bottom] - sums[2, top]
+        usable = (count >= ROW_GAIN_LEAST * (bottom - top) * per_row) & (background_sum >= count)
         usable = usable & (frame_sum >= count)
-        out[y] = np.float32(frame_sum / background_sum if usable else gain)
+        out[row] = frame_sum / background_sum if usable else gain
 
 
 @compiled_helper

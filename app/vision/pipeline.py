@@ -117,6 +117,11 @@ class Pipeline:
         self.zones = IgnoreZones(polygons)
         self.config = replace(self.config, ignore_zones=polygons)
 
+    def set_fps(self, fps: float) -> None:
+        """The frame rate as measured (a live camera's): the method counts its times at it."""
+        self.fps = fps
+        self.method.set_fps(fps)
+
     def set_method(self, name: str) -> None:
         """Swap the segmentation method (it learns the scene afresh); tracks carry on."""
         self.method = create_method(name, self.method.sensitivity, self.fps)

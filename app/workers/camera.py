@@ -64,8 +64,11 @@ Activate: enough that someone who stood still for a few of them is not the scene
 GLANCE_SIZE = Downscale(PipelineConfig.detect_width)
 
 MEASURED_FRAMES = 16
-"""Frames whose times give the camera's frame rate for detection (its times of day, such
-as how long a stopped person is kept, are counted in frames)."""
+"""Frames whose times give the camera's frame rate for detection (its times, such as how
+long a stopped person is kept, are counted in frames)."""
+
+FPS_SLACK = 0.15
+"""A measured frame rate this far (as a share) from detection's is taken by detection."""
 
 
 class EventRow(NamedTuple):
@@ -112,6 +115,8 @@ class CameraWorker:
         self.threshold: float | None = None
         self.last_alarm: float | None = None
         self._times: deque[float] = deque(maxlen=64)
+        self._measured_fps = 0.0
+        """The frame rate last measured over ``MEASURED_FRAMES`` or more, reconnects aside."""
         self._pipeline: Pipeline | None = None
         self._alarms: AlarmLogic | None = None
         self._event_rows: dict[int, EventRow] = {}
@@ -292,6 +297,11 @@ class CameraWorker:
         self._times.append(now_mono)
         if len(self._times) >= 2 and self._times[-1] > self._times[0]:
             self.fps = (len(self._times) - 1) / (self._times[-1] - self._times[0])
+            if len(self._times) >= MEASURED_FRAMES:
+                self._measured_fps = self.fps
+                pipeline = self._pipeline
+                if pipeline is not None and abs(self.fps - pipeline.fps) > FPS_SLACK * pipeline.fps:
+                    pipeline.set_fps(self.fps)  # Built before the rate was measured.
         live = LiveFrame(
             self.frames, now, frame, quality=self.settings.jpeg_quality, counter=self.encodes
         )
@@ -367,10 +377,11 @@ class CameraWorker:
             pipeline.set_ignore_zones(as_polygons(self._config["mask"]))
 
     def _frame_rate(self) -> float:
-        """Frames a second, as measured once ``MEASURED_FRAMES`` have come (an MJPEG
-        stream's header says 25 whatever the camera sends), else as the source says."""
-        if len(self._times) >= MEASURED_FRAMES and self.fps > 0:
-            return self.fps
+        """Frames a second, as last measured over ``MEASURED_FRAMES`` (an MJPEG stream's
+        header says 25 whatever the camera sends; a reconnect starts the count again),
+        else as the source says."""
+        if self._measured_fps > 0:
+            return self._measured_fps
         return float(getattr(self._source, "fps", 25.0))
 
     def _new_pipeline(self, fps: float) -> Pipeline:

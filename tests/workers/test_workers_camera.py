@@ -345,6 +345,16 @@ def test_detection_counts_time_at_the_rate_the_camera_sends(parts: dict[str, Any
         assert pipeline is not None
         assert 8.5 <= pipeline.fps <= 11.5, pipeline.fps
         assert worker._source is not None and worker._source.fps != pytest.approx(10.0, abs=1.5)
+        # A reconnect starts the count of frames again: the rate is still the measured
+        # one (a person stopping after a network hiccup was kept 13 s, not 5).
+        camera.stop()
+        wait_for(lambda: worker.state == "reconnecting", 15, "the camera to be lost")
+        camera.start()
+        wait_for(lambda: worker.state == "live", 15, "the camera back")
+        processed = worker.processed
+        wait_for(lambda: worker.processed > processed, 15, "detection again")
+        pipeline = worker._pipeline
+        assert pipeline is not None and 8.5 <= pipeline.fps <= 11.5, pipeline.fps
     finally:
         worker.request_stop()
         worker.join(5)

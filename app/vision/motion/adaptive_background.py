@@ -212,13 +212,12 @@ class AdaptiveBackground(MotionMethod):
         self.mode_weight = mode_weight
         self.deviation_rate = deviation_rate
         self.weak_fraction = weak_fraction
-        self.absorb_after = in_frames(absorb_after, fps)
-        self.relit_after = in_frames(relit_after, fps)
-        self.check_every = in_frames(check_every, fps)
         self.learning_frames = learning_frames
         if not 0 <= settle_frames <= 255:
             raise ValueError(f"settle_frames counts to 255 at most, not {settle_frames}")
-        self.settle_frames = min(in_frames(settle_frames, fps), 255) if settle_frames else 0
+        self._times_in_frames = (absorb_after, relit_after, check_every, settle_frames)
+        """The counts that stand for times, at ``REFERENCE_FPS``."""
+        self._scale_times(fps)
         guard = 2 * GUARD_REACH + 1
         self._guard_kernel = np.ones((guard, guard), np.uint8)
         self._model: np.ndarray | None = None
@@ -234,7 +233,7 @@ class AdaptiveBackground(MotionMethod):
         """Pixels of that plane that are set."""
         self._rings: np.ndarray | None = None
         self._gains: np.ndarray | None = None
-        self._recent: deque[GrayImage] = deque(maxlen=check_every)
+        self._recent: deque[GrayImage] = deque(maxlen=self.check_every)
         """The last ``check_every`` frames, oldest first."""
         self._previous_mask: Mask | None = None
         self._previous_moving = 0
@@ -243,6 +242,19 @@ class AdaptiveBackground(MotionMethod):
         self._frame_index = 0
         self._scene: SceneBackground | None = None
         """A scene to start from (``seed``), until the first frame."""
+
+    def set_fps(self, fps: float) -> None:
+        super().set_fps(fps)
+        self._scale_times(fps)
+        if self._recent.maxlen != self.check_every:
+            self._recent = deque(self._recent, maxlen=self.check_every)
+
+    def _scale_times(self, fps: float) -> None:
+        absorb_after, relit_after, check_every, settle_frames = self._times_in_frames
+        self.absorb_after = in_frames(absorb_after, fps)
+        self.relit_after = in_frames(relit_after, fps)
+        self.check_every = in_frames(check_every, fps)
+        self.settle_frames = min(in_frames(settle_frames, fps), 255) if settle_frames else 0
 
     # The model's planes that the steps in Python work on.
 

@@ -95,6 +95,11 @@ class MotionMethod(ABC):
     def apply(self, gray: GrayImage) -> MotionResult:
         """Segment one frame; frames must arrive in order and keep their size."""
 
+    def set_fps(self, fps: float) -> None:
+        """The video's frame rate as measured since the method was made (a live
+        camera's): what it counts in frames is counted at that rate from now on."""
+        self.fps = fps
+
     def reset(self) -> None:
         """Forget the scene (a new source, or a jump in the video)."""
         self.noise.reset()

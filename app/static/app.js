@@ -844,7 +844,11 @@ async function loadRecentAlarms() {
   const list = $("#alarm-list");
   for (const event of recent) {  // Newest first, after any alarm that came meanwhile.
     const key = alarmKey(event.camera_id, event.id, event.started_at);
-    if (state.alarmItems.has(key)) continue;
+    const shown = state.alarmItems.get(key);
+    if (shown) {  // Its end may have come while /ws was away (a restart ends it unsaid).
+      if (event.ended_at) setAlarmEnded(shown, event.ended_at - event.started_at, event.max_area);
+      continue;
+    }
     const item = alarmItem(key, event.camera_id, event.id, event.started_at);
     $(".who", item).textContent = cameraName(event.camera_id);
     $(".objects", item).textContent = `${plural((event.boxes || []).length, "object")}`
@@ -887,6 +891,7 @@ function connect() {
       for (const card of state.cards.values()) restartPictures(card);
       loadCameras();
       loadGallery();
+      loadRecentAlarms();
     }
   };
   socket.onclose = () => {
@@ -1077,10 +1082,14 @@ function renderResult(panel, analysis) {
       ? `<td>${fixed(t.distance_m, 2)}</td><td>${fixed(t.mean_speed_km_h, 1)}</td>` : ""}</tr>`).join("");
   const columns = calibrated ? 8 : 6;
   const events = report.events ?? 0;
+  // What the input did not give whole (frames that did not decode, an early end), or
+  // what the settings cannot find: said on the page as the report says it.
+  const warnings = (report.warnings || []).map((w) => `<li>${escapeHtml(w)}</li>`).join("");
   $(".live-view", panel).innerHTML = `<img alt="last analysed frame" src="${links.stream}?end=1">`;
   $(".result", panel).innerHTML = `
     <p>${report.frames ?? "?"} frames at ${report.fps ?? "?"} fps, ${plural(events, "event")},
       ${plural(tracks.length, "tracked object")}, method ${escapeHtml(report.method ?? "")}.</p>
+    ${warnings ? `<ul class="warnings">${warnings}</ul>` : ""}
     <p class="links"><a href="${links.annotated}">annotated.avi</a> · <a href="${links.tracks}">tracks.csv</a> ·
       <a href="${links.report_html}" target="_blank">report</a> · <a href="${links.report}" target="_blank">report.json</a></p>
     <div class="table-wrap"><table class="tracks"><thead><tr><th>track</th><th>frames</th><th>duration s</th>

@@ -11,6 +11,7 @@ import httpx
 import pytest
 
 from tests.api.vigil_livekit import Running, wait_for, wait_for_pictures, write_video
+from tests.sources.damaged_video import cut_after
 
 pytestmark = pytest.mark.browser
 
@@ -134,3 +135,19 @@ def test_ignore_zones_drawn_on_the_picture_are_saved_and_shown(
     assert card.locator("svg.zone-layer polygon").count() == 1
     assert errors == []
     assert page.evaluate("window.__csp") == [], "the editor keeps to the page's CSP"
+
+
+def test_an_upload_s_warnings_show_in_its_panel(
+    serve: Callable[..., Running], page: Any, tmp_path: Path
+) -> None:
+    # A file cut short ends "done", its report warns it ended early: the panel said
+    # nothing of it (outside audit).
+    server = serve()
+    whole = write_video(tmp_path / "whole.avi", frames=60)
+    cut = cut_after(whole, 20, tmp_path / "cut.avi")
+    page.goto(server.base + "/")
+    page.set_input_files("#upload input[type=file]", str(cut))
+    page.click("#upload button[type=submit]")
+    page.wait_for_selector(".analysis .status.badge-done", timeout=60000)
+    warning = page.locator(".analysis .warnings li").first.inner_text()
+    assert warning.startswith("the video ended early: ") and "of the 60 its header" in warning

@@ -595,3 +595,24 @@ def test_a_listing_asked_for_before_a_change_does_not_undo_it(
     page.wait_for_selector(".card .cam-name >> text=yard", timeout=10000)
     page.wait_for_timeout(500)
     assert method.input_value() == "frame-difference"
+
+
+def test_an_alarm_open_when_the_server_restarts_shows_its_end_after(
+    page: Any, motion_video: Path, tmp_path: Path
+) -> None:
+    # A restart ends the open event in the database, but no motion_end reaches a page:
+    # its entry said "moving…" until the page was reloaded.
+    probe = free_socket()
+    port = probe.getsockname()[1]
+    probe.close()
+    settings = live_settings(tmp_path / "data", quiet_s=30.0)  # Open until the restart.
+    with running_server(settings, port, graceful_s=1) as server:
+        add_camera(server.base, f"file://{motion_video}", name="lane", activate=True)
+        page.goto(server.base + "/")
+        page.wait_for_selector("#alarm-list li", timeout=20000)
+        entry = page.locator("#alarm-list li").first
+        event = entry.get_attribute("data-event")
+        assert entry.locator(".ongoing").inner_text() == "moving…"
+    with running_server(settings, port, graceful_s=1):
+        shown = page.locator(f'#alarm-list li[data-event="{event}"] .ongoing')
+        wait_for(lambda: shown.inner_text().startswith("ended after"), 20, "the alarm's end")

@@ -72,11 +72,9 @@ def _path(value: str) -> Path:
     return Path(value)
 
 
-MIN_DETECT_WIDTH = 32
-"""Narrower than this, the detector's morphology and min area leave nothing to detect."""
-
-
 def _detect_width(value: str) -> int:
+    from app.vision.pipeline import MIN_DETECT_WIDTH
+
     try:
         width = int(value)
     except ValueError:
@@ -102,6 +100,7 @@ def _port(value: str) -> int:
 
 def build_parser() -> argparse.ArgumentParser:
     from app.vision.motion import DEFAULT_METHOD, METHODS
+    from app.vision.pipeline import MIN_DETECT_WIDTH
     from app.vision.preprocess import DENOISE_METHODS, ENHANCE_METHODS
 
     parser = _Parser(prog="vigil", description="Vigil: tell me, and show me, when something moves.")

@@ -449,7 +449,8 @@ def detection_warnings(config: PipelineConfig, size: tuple[int, int]) -> list[st
     return [
         f"objects of the min area ({config.min_area:g} px) are {side:.1f} px across at the "
         f"detection size ({round(width / scale)} of {width} px wide): they may be missed, "
-        f"or boxed too large; --detect-width {wanted} (or a larger --min-area) keeps them"
+        f"or boxed too large; a detection width of {wanted} (--detect-width, an upload's "
+        "detect_width), or a larger min area, keeps them"
     ]
 
 

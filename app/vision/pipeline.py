@@ -55,6 +55,9 @@ class PipelineConfig:
     A live camera turns it off: its histogram viewers measure the frames they draw."""
 
 
+MIN_DETECT_WIDTH = 32
+"""Narrower than this, the detector's morphology and min area leave nothing to detect."""
+
 WHOLE_VIEW_SHARE = 0.8
 """Motion over more than this share of the view, from a method that does not judge such
 changes itself (``judges_whole_view``), is the view changing at once (a flash, a light

@@ -56,7 +56,7 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument(
         "--options",
         default="{}",
-        help="JSON: method, sensitivity, min_area, name, max_pixels, memory_mb",
+        help="JSON: method, sensitivity, min_area, detect_width, name, max_pixels, memory_mb",
     )
     args = parser.parse_args(argv)
     input_path: Path = args.input
@@ -84,10 +84,15 @@ def main(argv: list[str] | None = None) -> int:
         # there when they are enabled: they stay off here, whatever the server's setting.
         os.environ["OPENCV_FFMPEG_LOGLEVEL"] = FFMPEG_LOG_QUIET
 
+        def given(name: str) -> Any:
+            value = options.get(name)
+            return getattr(PipelineConfig, name) if value is None else value
+
         config = PipelineConfig(
             method=options.get("method") or PipelineConfig.method,
             sensitivity=options.get("sensitivity"),
-            min_area=float(options.get("min_area") or PipelineConfig.min_area),
+            min_area=float(given("min_area")),  # 0 too: no minimum.
+            detect_width=int(given("detect_width")),
         )
         out_dir: Path = args.out
         out_dir.mkdir(parents=True, exist_ok=True)

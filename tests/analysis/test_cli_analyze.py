@@ -407,7 +407,7 @@ def test_a_min_area_too_small_at_the_detection_size_is_warned_of_with_the_width_
     assert result.returncode == 0, result.stderr
     (line,) = result.stderr.splitlines()
     assert "1.7 px across at the detection size (320 of 1920 px wide)" in line, line
-    assert "--detect-width 768" in line
+    assert "a detection width of 768 (--detect-width" in line
     report = json.loads((tmp_path / "out" / "report.json").read_text())
     assert report["warnings"] == [line.removeprefix("vigil analyze: warning: ")]
     wide = vigil("analyze", video, "--out", tmp_path / "wide", "--detect-width", "768", "--quiet")

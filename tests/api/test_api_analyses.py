@@ -94,6 +94,8 @@ def test_upload_limits(serve: Callable[..., Running], tmp_path: Path) -> None:
         ({"min_area": "1e26"}, "min_area"),
         ({"min-area": "50"}, "min-area"),
         ({"sensitivity": "10", "mask": "x"}, "mask"),
+        ({"detect_width": "7"}, "detect_width is 0 (full size) or 32 to 7680 pixels"),
+        ({"detect_width": "9000"}, "detect_width"),
     ):
         refused = httpx.post(
             f"{server.base}/api/analyses", files={"file": ("x.avi", b"x")}, data=fields
@@ -168,3 +170,16 @@ def test_json_bodies_are_capped_too(serve: Callable[..., Running]) -> None:
     )
     assert streamed.status_code == 413
     assert httpx.get(f"{server.base}/api/cameras").json() == []
+
+
+def test_an_upload_takes_a_detection_width_and_a_min_area_of_0(
+    serve: Callable[..., Running], tmp_path: Path
+) -> None:
+    # The report's warning of objects too small at the detection size names the width
+    # to use, which the upload refused; and a min area of 0 became the default 100.
+    server = serve()
+    video = write_video(tmp_path / "clip.avi", frames=30)
+    result = _finished(server, _upload(server, video, min_area="0", detect_width="0"))
+    assert result["status"] == "done", result["error"]
+    settings = result["report"]["settings"]
+    assert settings["min_area"] == 0 and settings["detect_width"] == 0

@@ -19,12 +19,16 @@ from app.api.routes.inputs import check_min_area, is_control
 from app.api.routes.streams import MJPEG_TYPE, NO_CACHE, mjpeg_part
 from app.api.services import Services, services
 from app.vision.motion import METHODS
+from app.vision.pipeline import MIN_DETECT_WIDTH
 from app.workers.analysis_child import LIVE_FRAME
 
 router = APIRouter(prefix="/api/analyses", tags=["analyses"])
 
 FINISHED = ("done", "failed")
-UPLOAD_FIELDS = frozenset({"file", "method", "sensitivity", "min_area"})
+MAX_DETECT_WIDTH = 7680
+"""The widest detection an upload may ask for: an 8K frame's."""
+
+UPLOAD_FIELDS = frozenset({"file", "method", "sensitivity", "min_area", "detect_width"})
 """The parts of an upload; any other is refused."""
 
 
@@ -60,6 +64,7 @@ async def upload(
     method: str | None = Form(None),
     sensitivity: float | None = Form(None),
     min_area: float | None = Form(None),
+    detect_width: int | None = Form(None),
 ) -> dict[str, Any]:
     """Upload a video (multipart field ``file``); it is analysed in the background."""
     svc = services(request)
@@ -74,6 +79,13 @@ async def upload(
         check_min_area(min_area)
     except ValueError as exc:
         raise HTTPException(422, str(exc)) from None
+    if detect_width is not None and not (
+        detect_width == 0 or MIN_DETECT_WIDTH <= detect_width <= MAX_DETECT_WIDTH
+    ):
+        raise HTTPException(
+            422,
+            f"detect_width is 0 (full size) or {MIN_DETECT_WIDTH} to {MAX_DETECT_WIDTH} pixels",
+        )
     unknown = sorted(set((await request.form()).keys()) - UPLOAD_FIELDS)
     if unknown:  # A misspelt setting (min-area) is an error, as in the camera routes.
         raise HTTPException(
@@ -96,7 +108,12 @@ async def upload(
     if size == 0:
         shutil.rmtree(folder, ignore_errors=True)
         raise HTTPException(422, "the uploaded file is empty")
-    options = {"method": method or None, "sensitivity": sensitivity, "min_area": min_area}
+    options = {
+        "method": method or None,
+        "sensitivity": sensitivity,
+        "min_area": min_area,
+        "detect_width": detect_width,
+    }
     svc.database.add_analysis(analysis_id, filename, options)
     svc.analyses.submit(analysis_id)
     svc.bus.publish({"type": "status", "analysis_id": analysis_id, "status": "queued"})

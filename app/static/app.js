@@ -314,7 +314,12 @@ function makeCard(id) {
   $(".mask", card).addEventListener("change", (e) => patchCamera(id, { show_mask: e.target.checked }));
   $(".min-area", card).addEventListener("change", (e) => {
     const value = Number(e.target.value);
-    if (Number.isFinite(value) && value >= 0) patchCamera(id, { min_area: value });
+    if (e.target.value !== "" && Number.isFinite(value) && value >= 0) {
+      patchCamera(id, { min_area: value });
+      return;
+    }
+    toast(`Minimum area of ${escapeHtml(cameraName(id))}: a number of pixels, 0 or more`, "error");
+    e.target.value = state.cameras.get(id)?.min_area ?? "";  // Back to the area in force.
   });
   $(".method", card).addEventListener("change", (e) => patchCamera(id, { method: e.target.value }));
   $(".toggle", card).addEventListener("click", async () => {

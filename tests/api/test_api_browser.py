@@ -151,3 +151,18 @@ def test_an_upload_s_warnings_show_in_its_panel(
     page.wait_for_selector(".analysis .status.badge-done", timeout=60000)
     warning = page.locator(".analysis .warnings li").first.inner_text()
     assert warning.startswith("the video ended early: ") and "of the 60 its header" in warning
+
+
+def test_a_min_area_the_camera_cannot_take_is_said_and_undone_on_the_page(
+    serve: Callable[..., Running], page: Any
+) -> None:
+    # Typed -5, the field quietly went back to the area in force (outside audit).
+    server = serve(demo_camera=True)
+    page.goto(server.base + "/")
+    area = page.locator(".card .min-area").first
+    wait_for(lambda: area.input_value() == "100", 20, "the card")
+    area.fill("-5")
+    area.press("Enter")
+    page.wait_for_selector(".toast >> text=a number of pixels, 0 or more", timeout=5000)
+    assert area.input_value() == "100"
+    assert httpx.get(f"{server.base}/api/cameras").json()[0]["min_area"] == 100

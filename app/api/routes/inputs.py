@@ -107,18 +107,25 @@ NOT_A_FILE = "Expected UploadFile"
 """What FastAPI's message says when a file parameter got a plain form field."""
 
 
+VALUE_ERROR = "Value error, "
+"""What pydantic puts before the message of a ValueError that a check raised."""
+
+
 async def validation_error(request: Request, exc: Exception) -> JSONResponse:
     """FastAPI's 422, with every URL password in the echoed input masked (a refused
     camera source must not carry its password back to logs, proxies, browser tools),
-    long inputs cut to ``ECHO_LIMIT`` characters, and a file sent without a file name
-    said so."""
+    long inputs cut to ``ECHO_LIMIT`` characters, a file sent without a file name
+    said so, and our own checks' messages without pydantic's "Value error, "."""
     assert isinstance(exc, RequestValidationError)  # What it is registered for.
     # A body that is no JSON is echoed as bytes, which need not be UTF-8.
     as_text = {bytes: lambda data: data.decode("utf-8", "replace")}
     errors = _masked(jsonable_encoder(exc.errors(), custom_encoder=as_text))
     for error in errors:
-        if NOT_A_FILE in str(error.get("msg", "")):
+        message = str(error.get("msg", ""))
+        if NOT_A_FILE in message:
             error["msg"] = "expected a file: a multipart part with a file name"
+        elif message.startswith(VALUE_ERROR):  # Our own checks' words, as they are.
+            error["msg"] = message.removeprefix(VALUE_ERROR)
         echoed = error.get("input")
         if isinstance(echoed, str) and len(echoed) > ECHO_LIMIT:
             error["input"] = f"{echoed[:ECHO_LIMIT]}... ({len(echoed):,} characters)"

@@ -557,6 +557,10 @@ def status_fields(
     }
 
 
+STATUS_FIELDS = tuple(status_fields(0))
+"""The fields of a ``status`` message, and of the API's camera besides its settings."""
+
+
 def motion_end_message(
     camera_id: int, event_id: int, ts: float, duration_s: float, max_area: float
 ) -> dict[str, Any]:

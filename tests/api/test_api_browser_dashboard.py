@@ -616,3 +616,21 @@ def test_an_alarm_open_when_the_server_restarts_shows_its_end_after(
     with running_server(settings, port, graceful_s=1):
         shown = page.locator(f'#alarm-list li[data-event="{event}"] .ongoing')
         wait_for(lambda: shown.inner_text().startswith("ended after"), 20, "the alarm's end")
+
+
+def test_a_change_made_elsewhere_shows_on_an_open_page_at_once(
+    serve: Callable[..., Running], page: Any
+) -> None:
+    # A PATCH from a script or another tab reached an open page at its next listing of
+    # the cameras, up to 15 s on: "auto (33)" with the slider where it was (live audit).
+    server = serve(demo_camera=True)
+    cam = httpx.get(f"{server.base}/api/cameras").json()[0]["id"]
+    page.goto(server.base + "/")
+    card = page.locator(f'.card[data-id="{cam}"]')
+    wait_for(lambda: card.locator(".state").inner_text() == "live", 20, "the card")
+    changed = {"sensitivity": 33, "name": "porch", "method": "frame-difference"}
+    httpx.patch(f"{server.base}/api/cameras/{cam}", json=changed).raise_for_status()
+    wait_for(lambda: card.locator(".cam-name").inner_text() == "porch", 3, "the new name")
+    assert card.locator(".sens-value").inner_text() == "33"
+    assert not card.locator("input.auto").is_checked()
+    assert card.locator(".method").input_value() == "frame-difference"

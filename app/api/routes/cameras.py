@@ -17,6 +17,7 @@ from app.api.services import services
 from app.sources.live import MASK, has_masked_password, parse_source, with_stored_password
 from app.vision.motion import DEFAULT_METHOD, METHODS
 from app.vision.zones import as_polygons
+from app.workers.camera import STATUS_FIELDS
 
 router = APIRouter(prefix="/api/cameras", tags=["cameras"], route_class=StrictJsonRoute)
 
@@ -156,7 +157,12 @@ def change_camera(request: Request, camera_id: int, body: CameraPatch) -> dict[s
         svc.cameras.start(camera)
     else:
         worker.update(**changes)
-    return svc.camera_view(camera)
+    view = svc.camera_view(camera)
+    # Every page shows the change at once, not at its next listing of the cameras.
+    status = {key: view[key] for key in STATUS_FIELDS if key in view}
+    changed = {key: view[key] for key in changes}
+    svc.bus.publish({"type": "status", "camera_id": camera_id, **status, **changed})
+    return view
 
 
 @router.delete("/{camera_id}", status_code=204)

@@ -116,6 +116,8 @@ class _TrackSummary:
     def as_dict(self) -> dict[str, Any]:
         # Over every row tracks.csv has for the track: a track is reported once confirmed,
         # its velocity fitted to the sightings before, so its first row's speed is one.
+        # Its speeds from its fourth row on, where it has them (``FITTING_ROWS``).
+        fitted = self.speeds[FITTING_ROWS:] or self.speeds
         out: dict[str, Any] = {
             "track_id": self.track_id,
             "first_frame": self.first_frame,
@@ -123,8 +125,8 @@ class _TrackSummary:
             "frames": len(self.speeds),
             "duration_s": round(self.last_time_s - self.first_time_s, 4),
             "distance_px": round(self.distance_px, 2),
-            "mean_speed_px_s": round(statistics.fmean(self.speeds), 3),
-            "max_speed_px_s": round(max(self.speeds[FITTING_ROWS:] or self.speeds), 3),
+            "mean_speed_px_s": round(statistics.fmean(fitted), 3),
+            "max_speed_px_s": round(max(fitted), 3),
         }
         if self.speeds_m_s:
             mean_m_s = statistics.fmean(self.speeds_m_s)
@@ -441,16 +443,21 @@ def detection_warnings(config: PipelineConfig, size: tuple[int, int]) -> list[st
     """A line where objects of ``min_area`` are too small at the detection size to be
     found reliably, with the ``--detect-width`` that would keep them."""
     width = size[0]
+    if config.min_area <= 0:
+        return []
     scale = Downscale(config.detect_width).scale_for(width)
     side = math.sqrt(config.min_area) / scale
-    if config.min_area <= 0 or side >= SMALLEST_SIDE:
+    if side >= SMALLEST_SIDE:
         return []
-    wanted = min(width, math.ceil(width / scale * SMALLEST_SIDE / side / 32) * 32)
+    wanted = math.ceil(width / scale * SMALLEST_SIDE / side / 32) * 32
+    larger_area = f"a min area of {math.ceil(SMALLEST_SIDE**2 * scale**2)} px or more"
+    # Wider than the frame: the min area is too small even at full size.
+    remedy = f"a detection width of {wanted} (or {larger_area})" if wanted < width else larger_area
     return [
         f"objects of the min area ({config.min_area:g} px) are {side:.1f} px across at the "
         f"detection size ({round(width / scale)} of {width} px wide): they may be missed, "
-        f"or boxed too large; a detection width of {wanted} (--detect-width, an upload's "
-        "detect_width), or a larger min area, keeps them"
+        f"or boxed too large; {remedy} keeps them (--detect-width and --min-area, an "
+        "upload's detect_width and min_area)"
     ]
 
 

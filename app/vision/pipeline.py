@@ -59,7 +59,8 @@ MIN_DETECT_WIDTH = 32
 """Narrower than this, the detector's morphology and min area leave nothing to detect."""
 
 WHOLE_VIEW_SHARE = 0.8
-"""Motion over more than this share of the view, from a method that does not judge such
+"""Motion over more than this share of the view (outside its ignore zones), from a method
+that does not judge such
 changes itself (``judges_whole_view``), is the view changing at once (a flash, a light
 switched, the method's first frames: OpenCV's KNN calls the whole of its first frames
 motion), not objects: none are reported from it, and no track takes its size."""
@@ -156,7 +157,8 @@ class Pipeline:
         motion: MotionResult = clock("segment", self.method.apply, small)
         mask = clock("zones", self.zones, motion.mask)
         moving = cv2.countNonZero(mask)
-        whole_view = not self.method.judges_whole_view and moving > WHOLE_VIEW_SHARE * mask.size
+        watched = self.zones.watched(mask.shape[1], mask.shape[0])
+        whole_view = not self.method.judges_whole_view and moving > WHOLE_VIEW_SHARE * watched
         if moving and not whole_view:
             mask = clock("morphology", self.morphology, mask)
             blobs = clock("blobs", self.blobs, mask, scale)

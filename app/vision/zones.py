@@ -48,6 +48,12 @@ class IgnoreZones:
             return mask
         return cv2.bitwise_and(mask, self._keep_mask(mask.shape[1], mask.shape[0]))
 
+    def watched(self, width: int, height: int) -> int:
+        """Pixels of a ``width`` x ``height`` mask outside the zones."""
+        if not self.polygons:
+            return width * height
+        return cv2.countNonZero(self._keep_mask(width, height))
+
     def _keep_mask(self, width: int, height: int) -> Mask:
         keep = self._keep.get((width, height))
         if keep is None:

@@ -19,6 +19,7 @@ import cv2
 
 from app.core.config import Settings
 from app.events.alarm import AlarmLogic, MotionEvent
+from app.sources.files import valid_fps
 from app.sources.frames import FrameError, SourceFrame
 from app.sources.live import (
     FrameSource,
@@ -297,7 +298,8 @@ class CameraWorker:
         self._times.append(now_mono)
         if len(self._times) >= 2 and self._times[-1] > self._times[0]:
             self.fps = (len(self._times) - 1) / (self._times[-1] - self._times[0])
-            if len(self._times) >= MEASURED_FRAMES:
+            # A rate no source may claim is a burst (frames buffered over a reconnect).
+            if len(self._times) >= MEASURED_FRAMES and valid_fps(self.fps):
                 self._measured_fps = self.fps
                 pipeline = self._pipeline
                 if pipeline is not None and abs(self.fps - pipeline.fps) > FPS_SLACK * pipeline.fps:

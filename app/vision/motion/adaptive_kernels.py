@@ -149,7 +149,7 @@ ROW_GAIN_REACH = 2
 """Sampled rows (every ``GAIN_STEP``-th) each way over which a row's gain is measured
 (``_gains``)."""
 
-ROW_GAIN_LEAST = 0.5
+ROW_GAIN_LEAST = 0.25
 """The share of a row gain's samples that must look like background for it to count."""
 
 BANDS_LEAST = 0.06
@@ -423,8 +423,9 @@ def _gains(
     sampled row's ratio over the sampled rows within ``ROW_GAIN_REACH`` of it is
     taken first over pixels within ``ROW_GAIN_SPREAD`` of their background (as a
     share of it) besides ``limit``; where those ratios spread by ``BANDS_LEAST`` or
-    more, again over pixels within ``limit`` of their background lit by them, and
-    each row takes its nearest sampled row's. Elsewhere (no bands: the rows' ratios
+    more (five sampled rows at least), as their median (``_median_ratios``), then
+    again over pixels within ``limit`` of their background lit by it, and each row
+    takes its nearest sampled row's. Elsewhere (no bands: the rows' ratios
     differ only where an object the last mask missed weighs on them), and for rows
     with too few pixels to tell (``ROW_GAIN_LEAST``), the frame's.
     """
@@ -462,9 +463,12 @@ def _gains(
     ratios = np.empty(sampled)
     _windowed_ratios(sums, per_row, gain, ratios)
     ordered = np.sort(ratios)
-    if ordered[(sampled * 4) // 5] - ordered[sampled // 5] < BANDS_LEAST * gain:
+    if sampled < 5 or ordered[(sampled * 4) // 5] - ordered[sampled // 5] < BANDS_LEAST * gain:
         out[:] = np.float32(gain)
         return gain
+    # Bands: each row's ratio again as the median over its window, which an object the
+    # last mask missed does not move unless it covers half of it (the mean did).
+    _median_ratios(gray, background, previous_mask, step, limit, gain, ratios)
     for row in range(sampled):  # Again, within ``limit`` of the background so lit.
         y = row * step
         lit = ratios[row]
@@ -485,6 +489,43 @@ def _gains(
     for y in range(rows):
         out[y] = np.float32(ratios[min((y + step // 2) // step, sampled - 1)])
     return gain
+
+
+@compiled_helper
+def _median_ratios(
+    gray: GrayImage,
+    background: FloatImage,
+    previous_mask: Mask,
+    step: int,
+    limit: float,
+    gain: float,
+    out: np.ndarray,
+) -> None:
+    """Each sampled row's median ratio of frame to background over the sampled rows
+    within ``ROW_GAIN_REACH`` of it, of pixels within ``ROW_GAIN_SPREAD`` of their
+    background (as a share of it) besides ``limit``; ``gain`` where they are too few."""
+    cols = gray.shape[1]
+    sampled = out.size
+    per_row = (cols + step - 1) // step
+    found = np.empty((2 * ROW_GAIN_REACH + 1) * per_row)
+    for row in range(sampled):
+        top = max(row - ROW_GAIN_REACH, 0)
+        bottom = min(row + ROW_GAIN_REACH + 1, sampled)
+        count = 0
+        for near in range(top, bottom):
+            y = near * step
+            for x in range(0, cols, step):
+                value = float(gray[y, x])
+                model = float(background[y, x])
+                if (
+                    previous_mask[y, x] == 0
+                    and model >= 1.0
+                    and abs(value - model) < limit + ROW_GAIN_SPREAD * model
+                ):
+                    found[count] = value / model
+                    count += 1
+        enough = count > 0 and count >= ROW_GAIN_LEAST * (bottom - top) * per_row
+        out[row] = np.median(found[:count]) if enough else gain
 
 
 @compiled_helper

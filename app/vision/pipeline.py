@@ -157,8 +157,9 @@ class Pipeline:
         motion: MotionResult = clock("segment", self.method.apply, small)
         mask = clock("zones", self.zones, motion.mask)
         moving = cv2.countNonZero(mask)
-        watched = self.zones.watched(mask.shape[1], mask.shape[0])
-        whole_view = not self.method.judges_whole_view and moving > WHOLE_VIEW_SHARE * watched
+        whole_view = not self.method.judges_whole_view and moving > WHOLE_VIEW_SHARE * (
+            self.zones.watched(mask.shape[1], mask.shape[0])
+        )
         if moving and not whole_view:
             mask = clock("morphology", self.morphology, mask)
             blobs = clock("blobs", self.blobs, mask, scale)

@@ -22,6 +22,7 @@ from tests.api.vigil_livekit import (
     Running,
     add_camera,
     free_socket,
+    hold_answers,
     live_settings,
     running_server,
     wait_for,
@@ -29,6 +30,9 @@ from tests.api.vigil_livekit import (
 )
 
 pytestmark = pytest.mark.browser
+
+LISTING = re.compile(r"/api/cameras$")
+"""The camera listing's URL, whose answers the tests hold back."""
 
 PICTURE_HASHES = """(selector) => [...document.querySelectorAll(selector)].map((img) => {
   if (!img.naturalWidth) return null;  // no frame (yet): blank, loading or broken
@@ -498,17 +502,7 @@ def test_a_camera_listing_answered_late_does_not_undo_a_newer_state(
         page.goto(server.base + "/")
         badge = page.locator(f'.card[data-id="{door}"] .state')
         wait_for(lambda: badge.inner_text() == "live", 20, "the camera to be live")
-        held: list[tuple[Any, Any]] = []
-        # Answered now (the camera is live), given to the page later.
-        listing = re.compile(r"/api/cameras$")
-        page.route(
-            listing,
-            lambda route: (
-                held.append((route, route.fetch()))
-                if route.request.method == "GET"
-                else route.continue_()
-            ),
-        )
+        held = hold_answers(page, LISTING)  # Answered now (the camera is live).
         add_camera(server.base, camera.url, name="yard")
         wait_for(lambda: held or page.wait_for_timeout(50), 10, "the page to list the cameras")
         camera.stop()
@@ -522,7 +516,7 @@ def test_a_camera_listing_answered_late_does_not_undo_a_newer_state(
         assert badge.inner_text() == lost
         for route, answer in held:
             route.fulfill(response=answer)
-        page.unroute(listing)
+        page.unroute(LISTING)
         page.wait_for_selector(".card .cam-name >> text=yard", timeout=10000)
         assert badge.inner_text() == lost
     finally:
@@ -541,9 +535,8 @@ def test_a_settings_answer_that_comes_late_does_not_undo_a_newer_state(
         page.goto(server.base + "/")
         card = page.locator(f'.card[data-id="{door}"]')
         wait_for(lambda: card.locator(".state").inner_text() == "live", 20, "the camera live")
-        held: list[tuple[Any, Any]] = []
         answer_to_patch = re.compile(rf"/api/cameras/{door}$")
-        page.route(answer_to_patch, lambda route: held.append((route, route.fetch())))
+        held = hold_answers(page, answer_to_patch, "PATCH")
         card.locator(".method").select_option("frame-difference")
         wait_for(lambda: held or page.wait_for_timeout(50), 10, "the PATCH to be answered")
         camera.stop()
@@ -569,16 +562,7 @@ def test_a_listing_asked_for_before_a_change_does_not_undo_it(
     page.goto(server.base + "/")
     method = page.locator(f'.card[data-id="{demo}"] .method')
     wait_for(lambda: method.count() and method.input_value() == "adaptive", 20, "the card")
-    held: list[tuple[Any, Any]] = []
-    listing = re.compile(r"/api/cameras$")
-    page.route(
-        listing,
-        lambda route: (
-            held.append((route, route.fetch()))
-            if route.request.method == "GET"
-            else route.continue_()
-        ),
-    )
+    held = hold_answers(page, LISTING)
     add_camera(server.base, "demo", name="yard")  # The page asks for the list.
     wait_for(lambda: held or page.wait_for_timeout(50), 10, "the page to list the cameras")
     method.select_option("frame-difference")
@@ -591,7 +575,7 @@ def test_a_listing_asked_for_before_a_change_does_not_undo_it(
     )
     for route, answer in held:
         route.fulfill(response=answer)
-    page.unroute(listing)
+    page.unroute(LISTING)
     page.wait_for_selector(".card .cam-name >> text=yard", timeout=10000)
     page.wait_for_timeout(500)
     assert method.input_value() == "frame-difference"

@@ -94,6 +94,23 @@ def wait_for(
 ROOT = Path(__file__).resolve().parents[2]
 
 
+def hold_answers(page: Any, url: Any, method: str = "GET") -> list[tuple[Any, Any]]:
+    """Hold back from ``page`` the server's answers to its ``method`` requests to ``url``
+    (a glob or a compiled pattern): each is answered at once, as things stand then, and
+    given to the page only when the test fulfils its route (other requests go through).
+    The (route, answer) pairs, in the order asked; the page's waits let them come."""
+    held: list[tuple[Any, Any]] = []
+    page.route(
+        url,
+        lambda route: (
+            held.append((route, route.fetch()))
+            if route.request.method == method
+            else route.continue_()
+        ),
+    )
+    return held
+
+
 def wait_for_pictures(
     page: Any, count: int, timeout_ms: int = 30000, at_least: bool = False
 ) -> None:

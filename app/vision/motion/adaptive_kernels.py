@@ -438,25 +438,12 @@ def _gains(
     count = 0
     for row in range(sampled):
         y = row * step
-        row_frame = 0.0
-        row_background = 0.0
-        row_count = 0
-        for x in range(0, cols, step):  # Selects, not branches: which way is a toss-up.
-            value = float(gray[y, x])
-            model = float(background[y, x])
-            still = previous_mask[y, x] == 0
-            off = abs(value - model)
-            used = still & (off < limit)
-            frame_sum += value if used else 0.0
-            background_sum += model if used else 0.0
-            count += used
-            near = still & (off < limit + ROW_GAIN_SPREAD * model)
-            row_frame += value if near else 0.0
-            row_background += model if near else 0.0
-            row_count += near
-        sums[0, row + 1] = sums[0, row] + row_frame
-        sums[1, row + 1] = sums[1, row] + row_background
-        sums[2, row + 1] = sums[2, row] + row_count
+        seen, model, used = _row_sums(gray, background, previous_mask, y, step, 1.0, limit, 0.0)
+        frame_sum += seen
+        background_sum += model
+        count += used
+        near = _row_sums(gray, background, previous_mask, y, step, 1.0, limit, ROW_GAIN_SPREAD)
+        _add_row(sums, row, near)
     gain = 1.0
     if count > 0 and background_sum >= count and frame_sum >= count:
         gain = frame_sum / background_sum
@@ -470,25 +457,50 @@ def _gains(
     # last mask missed does not move unless it covers half of it (the mean did).
     _median_ratios(gray, background, previous_mask, step, limit, gain, ratios)
     for row in range(sampled):  # Again, within ``limit`` of the background so lit.
-        y = row * step
         lit = ratios[row]
-        row_frame = 0.0
-        row_background = 0.0
-        row_count = 0
-        for x in range(0, cols, step):
-            value = float(gray[y, x])
-            model = float(background[y, x])
-            used = (previous_mask[y, x] == 0) & (abs(value - model * lit) < limit)
-            row_frame += value if used else 0.0
-            row_background += model if used else 0.0
-            row_count += used
-        sums[0, row + 1] = sums[0, row] + row_frame
-        sums[1, row + 1] = sums[1, row] + row_background
-        sums[2, row + 1] = sums[2, row] + row_count
+        _add_row(
+            sums, row, _row_sums(gray, background, previous_mask, row * step, step, lit, limit, 0.0)
+        )
     _windowed_ratios(sums, per_row, gain, ratios)
     for y in range(rows):
         out[y] = np.float32(ratios[min((y + step // 2) // step, sampled - 1)])
     return gain
+
+
+@compiled_helper
+def _row_sums(
+    gray: GrayImage,
+    background: FloatImage,
+    previous_mask: Mask,
+    y: int,
+    step: int,
+    lit: float,
+    limit: float,
+    spread: float,
+) -> tuple[float, float, int]:
+    """Frame and background sums, and how many pixels, of row ``y``'s every ``step``-th
+    pixel that was still and is within ``limit`` plus ``spread`` (a share of its
+    background) of its background lit by ``lit``."""
+    frame_sum = 0.0
+    background_sum = 0.0
+    count = 0
+    for x in range(0, gray.shape[1], step):  # Selects, not branches: a toss-up.
+        value = float(gray[y, x])
+        model = float(background[y, x])
+        used = (previous_mask[y, x] == 0) & (abs(value - model * lit) < limit + spread * model)
+        frame_sum += value if used else 0.0
+        background_sum += model if used else 0.0
+        count += used
+    return frame_sum, background_sum, count
+
+
+@compiled_helper
+def _add_row(sums: np.ndarray, row: int, row_sums: tuple[float, float, int]) -> None:
+    """Running ``sums`` (frame, background, count) through ``row``, from the row's own."""
+    frame_sum, background_sum, count = row_sums
+    sums[0, row + 1] = sums[0, row] + frame_sum
+    sums[1, row + 1] = sums[1, row] + background_sum
+    sums[2, row + 1] = sums[2, row] + count
 
 
 @compiled_helper

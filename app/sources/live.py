@@ -442,8 +442,6 @@ class FileSource:
     paced = True
 
     def __init__(self, path: Path) -> None:
-        if not path.is_file():
-            raise SourceError(f"file not found: {path}")
         self.path = path
         self._capture = self._open()
         self.fps = frame_rate(self._capture)
@@ -451,6 +449,9 @@ class FileSource:
         self._frames_in_loop = 0
 
     def _open(self) -> cv2.VideoCapture:
+        """Opened at the start and again at each loop: the file may be gone by then."""
+        if not self.path.is_file():
+            raise SourceError(f"file not found: {self.path}")
         capture = cv2.VideoCapture(str(self.path), cv2.CAP_FFMPEG)
         if not capture.isOpened():
             capture.release()

@@ -195,6 +195,17 @@ def test_file_loops_at_its_own_rate(tmp_path: Path) -> None:
     source.close()
 
 
+def test_a_file_deleted_under_its_camera_is_named_at_the_next_loop(tmp_path: Path) -> None:
+    video = write_video(tmp_path / "x.avi", frames=3)
+    source = open_source(parse_source(f"file://{video}"))
+    for _ in range(3):  # The whole loop, read while the file is there.
+        source.read()
+    video.unlink()
+    with pytest.raises(SourceError, match="file not found"):
+        source.read()
+    source.close()
+
+
 def test_a_folder_of_images_loops_by_name(tmp_path: Path) -> None:
     """A folder of pictures is a file source: its images in name order (2 before 10, JPEG
     and PNG alike), looped at 25 fps; a picture that does not decode is a bad frame."""

@@ -135,12 +135,12 @@ class Pipeline:
         self,
         frame: Image,
         time_s: float | None = None,
-        frame_width: int | None = None,
+        frame_size: tuple[int, int] | None = None,
         index: int | None = None,
     ) -> FrameResult:
-        """One frame, in order. ``frame_width``: the width of the original picture when
-        ``frame`` is a reduced copy of it (decoded at reduced scale); boxes, areas and
-        speeds then come back in the original's pixels. ``index``: the frame's decode
+        """One frame, in order. ``frame_size``: the original picture's (width, height)
+        when ``frame`` is a reduced copy of it (decoded at reduced scale); boxes, areas
+        and speeds then come back in the original's pixels. ``index``: the frame's decode
         index where frames before it did not decode (default: the one after the last);
         its time is then index / fps unless ``time_s`` says otherwise."""
         if index is not None:
@@ -153,7 +153,8 @@ class Pipeline:
         gray = clock("grayscale", to_gray, frame)
         stats = clock("histogram", grey_stats, gray) if self.config.grey_stats else None
         small = self._prepare(gray, clock)
-        scale = (frame_width or gray.shape[1]) / small.shape[1]
+        frame_size = frame_size or (gray.shape[1], gray.shape[0])
+        scale = frame_size[0] / small.shape[1]
         motion: MotionResult = clock("segment", self.method.apply, small)
         mask = clock("zones", self.zones, motion.mask)
         moving = cv2.countNonZero(mask)
@@ -162,7 +163,7 @@ class Pipeline:
         )
         if moving and not whole_view:
             mask = clock("morphology", self.morphology, mask)
-            blobs = clock("blobs", self.blobs, mask, scale)
+            blobs = clock("blobs", self.blobs, mask, scale, frame_size)
         else:  # Most frames of a quiet scene: nothing to clean or measure.
             blobs = []
             clock.skipped("morphology", "blobs")

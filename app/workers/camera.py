@@ -311,7 +311,7 @@ class CameraWorker:
         if pipeline is not None and alarms is not None:
             # Detection needs grey at its own width only: a JPEG decodes to that directly.
             gray = frame.gray(pipeline.config.detect_width)
-            result = pipeline.process(gray, now_mono - self._activated_at, frame.size[0])
+            result = pipeline.process(gray, now_mono - self._activated_at, frame.size)
             self.processed += 1
             live.detections = result.detections
             live.trails = pipeline.tracker.trails()

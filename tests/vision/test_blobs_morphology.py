@@ -36,6 +36,15 @@ def test_boxes_map_back_to_input_pixels():
     assert det.centroid == pytest.approx((4 * 39.5 + 1.5, 4 * 14.5 + 1.5), abs=2.5)
 
 
+def test_boxes_stay_inside_a_frame_whose_reduced_copy_was_rounded():
+    """480x640 (portrait) detected at 320 wide: 640 / 1.5 is 426.7 rows, rounded to 427,
+    whose last row reaches input row 640.5, past the frame."""
+    mask = np.zeros((427, 320), np.uint8)
+    mask[400:, 300:] = 255
+    (det,) = BlobExtractor(min_area=1)(mask, scale=1.5, frame_size=(480, 640))
+    assert det.box.as_list() == [450, 600, 30, 40]
+
+
 def test_morphology_removes_speckles_and_fills_holes():
     mask = np.zeros((60, 60), np.uint8)
     mask[10:40, 10:40] = 255

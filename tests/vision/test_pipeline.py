@@ -52,7 +52,7 @@ def test_a_reduced_copy_gives_boxes_speeds_and_areas_of_the_original():
         frame = SCENE.frame(i)
         half = cv2.resize(cv2.cvtColor(frame, cv2.COLOR_BGR2GRAY), (320, 240), cv2.INTER_AREA)
         expected = full.process(frame)
-        got = reduced.process(half, frame_width=640)
+        got = reduced.process(half, frame_size=(640, 480))
     assert got.scale == expected.scale == 2.0
     (a,) = expected.detections
     (b,) = got.detections

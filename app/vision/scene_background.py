@@ -13,11 +13,15 @@ background is estimated from them:
   long something covered it in between (a slow car covers the middle of its
   path most of the time: a median over all samples would take the car for the
   scene there).
-* **Where they disagree** something stood at one end. Per region of
-  disagreement, the end whose picture continues its surroundings is the scene:
-  an object's outline is an edge across the region's border, the scene behind
-  it is not (the test the adaptive model uses for ghosts). A region too small
-  to tell by its border takes the median of all samples.
+* **Where they disagree** something stood at one end, or the light changed.
+  Per region of disagreement, the end whose picture continues its
+  surroundings is the scene: an object's outline is an edge across the
+  region's border, the scene behind it is not (the test the adaptive model
+  uses for ghosts). Where neither end's picture changes sharply there (a
+  cloud's shadow moved on; a lamp came on), or the end is the same ground in
+  another light (its fine texture unchanged), the start's picture is: it is
+  what the first frame shows. A region too small to tell by its border takes the
+  median of all samples.
 * **The view changed** (a light switched, the camera was moved, something
   came to fill it) where a later run of samples differs from the start over
   much of the picture: only the samples up to the change count (the search by
@@ -53,7 +57,7 @@ import numpy as np
 
 from app.vision.noise import HALF_NORMAL_MEDIAN
 from app.vision.types import FloatImage, GrayImage
-from app.vision.view_shift import VIEW_SHIFT_REACH, shift_explains
+from app.vision.view_shift import shift_explains
 
 END_SAMPLES = 5
 """Samples at each end of the sampled stretch whose median shows that end."""
@@ -75,6 +79,12 @@ itself changed."""
 CAMERA_MOVED_PX = 1.5
 """Pixels: samples whose picture is the start's shifted this far show a camera that moved."""
 
+PAN_REACH = 0.5
+"""The largest shift, as a share of the picture's width, sought between the start and a
+later run of samples: a knock moves the view a few pixels, a pan (the camera turned
+between them) much further. Where the scene's detail is one object's, its own move is
+not taken for the view's (``shift_explains``)."""
+
 LEAST_SHIFT_SIDE = 16
 """Pixels: a picture narrower (or lower) than this is not searched for a shifted view."""
 
@@ -91,6 +101,18 @@ TEXTURE_BAND = (1.0, 4.0)
 detail between the camera's noise and a light's soft fall-off, which the light keeps.
 (Where the camera's noise is 6 grey levels, a lamp's texture correlates 0.98 with the
 ground's, and objects', plain or textured, -0.12 to 0.17; unblurred, the lamp's 0.85.)"""
+
+SHARP_BORDER = 1.6
+"""An end shows an outline along a region's border where its edges there (Sobel) reach
+this many times the region's mean difference between the ends: the change happens within
+a pixel or two (a step of D grey levels gives 4 D, an object's blurred outline 2.2 to 3 D
+in the synthetic scenes, swaying leaves 2 to 14 D). A cloud's shadow, a lamp's pool,
+spread their change over tens of pixels (0.5 to 1.3 D)..."""
+
+ONE_SIDED = 3.0
+"""... or where its edges there are this many times the other end's: an outline, if a
+soft one (an object half blended into the samples' median), beside plain ground. A
+cloud's shadow's edge is as soft in both ends (0.5 to 2 times)."""
 
 LEAST_REGION = 16
 """Pixels: a region of disagreement smaller than this has no border to judge it by."""
@@ -149,6 +171,9 @@ def estimate_scene_background(samples: Sequence[GrayImage]) -> SceneBackground |
     stack = stack[:same_view]
     end = _median(stack[-END_SAMPLES:])
     disagree = np.abs(start - end) > agreement
+    # The same ground in another light at the end (a cloud's shadow moved, a lamp came
+    # on) is the scene at both: the start's picture, as where the ends agree.
+    disagree &= ~_relit(start, end, disagree)
     background, shows_start = _pick_ends(start, end, disagree, stack)
     # Each end's spread about its own median (a drift between them is no sway); where
     # the ends agree, both show the scene, elsewhere only the end chosen does.
@@ -212,7 +237,7 @@ def _same_view(stack: np.ndarray, start: FloatImage, agreement: float) -> int:
     """How many samples, from the first, show the start's view: up to the last run of
     ``END_SAMPLES`` whose median differs from ``start`` by more than ``agreement`` over
     at most ``VIEW_CHANGED_SHARE`` of the picture and is not the start's picture shifted
-    by up to ``VIEW_SHIFT_REACH`` (a light that switched, a camera that moved, stays so:
+    by up to ``PAN_REACH`` (a light that switched, a camera that moved, stays so:
     the run is sought by halving)."""
 
     height, width = start.shape
@@ -232,7 +257,7 @@ def _same_view(stack: np.ndarray, start: FloatImage, agreement: float) -> int:
         # view shifted is sought, and taken where it explains the change.
         # Copies: OpenCV 5.0's phaseCorrelate applies the window to its inputs in place.
         (dx, dy), _ = cv2.phaseCorrelate(start.copy(), window.copy(), taper)
-        moved = CAMERA_MOVED_PX <= math.hypot(dx, dy) <= VIEW_SHIFT_REACH * width
+        moved = CAMERA_MOVED_PX <= math.hypot(dx, dy) <= PAN_REACH * width
         return not (moved and shift_explains(start, window, dx, dy, agreement))
 
     if same(len(stack)):
@@ -250,8 +275,10 @@ def _pick_ends(
     """The background, and where it is the start's picture. Where the ends agree it is
     the start's: what the first frame shows (the light may have drifted a little by the
     end). Where they disagree, region by region, the end that continues the region's
-    surroundings (or the median of all samples, for a region too small to judge, where
-    the start's spread stands for its variability)."""
+    surroundings, where either end shows an outline along the region's border
+    (``SHARP_BORDER``, ``ONE_SIDED``), else the start: a change of light (or the median
+    of all samples, for a region too small to judge, where the start's spread stands for
+    its variability)."""
     background = start.copy()
     shows_start = np.ones(start.shape, bool)
     regions, labels, stats, _ = cv2.connectedComponentsWithStats(
@@ -275,7 +302,12 @@ def _pick_ends(
             continue
         shape = inside.astype(np.uint8)
         border = cv2.dilate(shape, ring) != cv2.erode(shape, ring)
-        take_end = edges_end[box][border].mean() < edges_start[box][border].mean()
+        along_start = edges_start[box][border].mean()
+        along_end = edges_end[box][border].mean()
+        sharper, softer = max(along_start, along_end), min(along_start, along_end)
+        contrast = np.abs(start[box] - end[box])[inside].mean()
+        outline = sharper >= SHARP_BORDER * contrast or sharper >= ONE_SIDED * softer
+        take_end = outline and along_end < along_start
         chosen = end if take_end else start
         background[box][inside] = chosen[box][inside]
         shows_start[box][inside] = not take_end

@@ -36,11 +36,12 @@ SHIFT_MAY_MISS = 0.25
 in the picture while the view moves (a camera's time stamp over plain sky, the edge of
 its housing) may be all the detail of a part or two."""
 
-SHIFT_LEAST_DETAILED = 0.5
-"""The least share of the parts that must have detail for a shift to tell a moved view:
-with less, the detail may all be one object's on a plain scene (a white box crossing a
-grey wall), which its own shift explains as well as a moved view would, and an object
-moving is what a motion detector reports."""
+SHIFT_SPREAD = 0.5
+"""The least share of the view's width, and of its height, that the detail a shift moves
+must span for the shift to tell a moved view: detail within less may all be one
+object's on a plain scene (a white box crossing a grey wall), which its own shift
+explains as well as a moved view would, and an object moving is what a motion detector
+reports. A view's detail is spread over it, if thinly (a few signs on plain walls)."""
 
 
 def shifted(
@@ -88,10 +89,15 @@ def shift_explains(
 
 
 def _shows_in_most_parts(moves: np.ndarray, shown: np.ndarray) -> bool:
-    """Whether in all but ``SHIFT_MAY_MISS`` of the ``SHIFT_PARTS`` x ``SHIFT_PARTS``
-    parts of the view where ``moves`` holds ``SHIFT_DETAIL`` of the pixels, ``shown``
-    holds ``SHIFT_SHOWS`` of them, and those parts are ``SHIFT_LEAST_DETAILED`` of all."""
+    """Whether ``moves`` spans ``SHIFT_SPREAD`` of the view each way, and in all but
+    ``SHIFT_MAY_MISS`` of the ``SHIFT_PARTS`` x ``SHIFT_PARTS`` parts of the view where
+    ``moves`` holds ``SHIFT_DETAIL`` of the pixels, ``shown`` holds ``SHIFT_SHOWS`` of
+    them."""
     height, width = moves.shape
+    if _span(moves.any(axis=0)) < SHIFT_SPREAD * width:
+        return False
+    if _span(moves.any(axis=1)) < SHIFT_SPREAD * height:
+        return False
     rows = np.linspace(0, height, SHIFT_PARTS + 1).astype(int)
     cols = np.linspace(0, width, SHIFT_PARTS + 1).astype(int)
     detailed = missed = 0
@@ -102,6 +108,10 @@ def _shows_in_most_parts(moves: np.ndarray, shown: np.ndarray) -> bool:
             if changed >= max(1.0, SHIFT_DETAIL * moves[part].size):
                 detailed += 1
                 missed += int(np.count_nonzero(shown[part]) < SHIFT_SHOWS * changed)
-    if detailed < SHIFT_LEAST_DETAILED * SHIFT_PARTS * SHIFT_PARTS:
-        return False
-    return missed <= SHIFT_MAY_MISS * detailed
+    return detailed > 0 and missed <= SHIFT_MAY_MISS * detailed
+
+
+def _span(held: np.ndarray) -> int:
+    """From the first to the last True of a 1-D array, both counted (0 where none is)."""
+    where = np.flatnonzero(held)
+    return int(where[-1] - where[0] + 1) if where.size else 0

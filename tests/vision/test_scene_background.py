@@ -111,6 +111,41 @@ def test_a_change_of_the_whole_view_leaves_the_scene_before_it(change):
     assert share_right(estimate, empty_scene(scene)) >= 0.99
 
 
+def noisy(picture: np.ndarray, rng: np.random.Generator) -> np.ndarray:
+    return np.clip(picture + rng.normal(0.0, 2.0, picture.shape), 0, 255).astype(np.uint8)
+
+
+def test_a_cloud_s_shadow_that_moved_on_leaves_the_start_s_picture():
+    # Plain ground with a soft shadow, which drifts away over the clip: neither end's
+    # picture shows an outline where they disagree. The scene is what frame 0 shows;
+    # the end's picture there would be motion in the first frames.
+    rng = np.random.default_rng(1)
+    rows, cols = np.mgrid[0:120, 0:160]
+
+    def shadowed(x: float) -> np.ndarray:
+        shade = np.exp(-((cols - x) ** 2 + (rows - 60.0) ** 2) / (2 * 22.0**2))
+        return 120.0 * (1.0 - 0.45 * shade)
+
+    samples = [noisy(shadowed(40.0 + 1.5 * i), rng) for i in range(32)]
+    estimate = estimate_scene_background(samples)
+    assert estimate is not None
+    assert np.mean(np.abs(estimate.background - shadowed(40.0)) <= CLOSE) >= 0.99
+
+
+def test_a_camera_that_panned_leaves_the_scene_before_it():
+    # A few signs on plain walls, the camera turned a fifth of the view half way: the
+    # signs seen at the start are the scene, not objects that left.
+    rng = np.random.default_rng(2)
+    wall = np.full((120, 240), 110.0)
+    for x, y in ((20, 15), (70, 40), (120, 80), (160, 20), (200, 95), (100, 100)):
+        wall[y : y + 12, x : x + 10] = 200.0
+    start, panned = wall[:, :160], wall[:, 32:192]
+    samples = [noisy(start if i < 16 else panned, rng) for i in range(32)]
+    estimate = estimate_scene_background(samples)
+    assert estimate is not None and estimate.view_changed
+    assert np.mean(np.abs(estimate.background - start) <= CLOSE) >= 0.99
+
+
 def test_swaying_leaves_show_as_variability_where_they_are():
     x, y, w, h = region = (200, 20, 100, 120)
     scene = Scene("sway", frames=120, sway_region=region)

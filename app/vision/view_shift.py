@@ -94,9 +94,9 @@ def _shows_in_most_parts(moves: np.ndarray, shown: np.ndarray) -> bool:
     ``moves`` holds ``SHIFT_DETAIL`` of the pixels, ``shown`` holds ``SHIFT_SHOWS`` of
     them."""
     height, width = moves.shape
-    if _span(moves.any(axis=0)) < SHIFT_SPREAD * width:
+    if _span(np.any(moves, axis=0)) < SHIFT_SPREAD * width:
         return False
-    if _span(moves.any(axis=1)) < SHIFT_SPREAD * height:
+    if _span(np.any(moves, axis=1)) < SHIFT_SPREAD * height:
         return False
     rows = np.linspace(0, height, SHIFT_PARTS + 1).astype(int)
     cols = np.linspace(0, width, SHIFT_PARTS + 1).astype(int)

@@ -47,7 +47,6 @@ ago, and is left to the model.
 
 from __future__ import annotations
 
-import math
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 from typing import Generic, TypeVar
@@ -57,7 +56,7 @@ import numpy as np
 
 from app.vision.noise import HALF_NORMAL_MEDIAN
 from app.vision.types import FloatImage, GrayImage
-from app.vision.view_shift import shift_explains
+from app.vision.view_shift import moved_view
 
 END_SAMPLES = 5
 """Samples at each end of the sampled stretch whose median shows that end."""
@@ -78,15 +77,6 @@ itself changed."""
 
 CAMERA_MOVED_PX = 1.5
 """Pixels: samples whose picture is the start's shifted this far show a camera that moved."""
-
-PAN_REACH = 0.5
-"""The largest shift, as a share of the picture's width, sought between the start and a
-later run of samples: a knock moves the view a few pixels, a pan (the camera turned
-between them) much further. Where the scene's detail is one object's, its own move is
-not taken for the view's (``shift_explains``)."""
-
-LEAST_SHIFT_SIDE = 16
-"""Pixels: a picture narrower (or lower) than this is not searched for a shifted view."""
 
 RECENT_SAMPLES = 3
 """The newest samples whose median shows the scene as it is now (a live camera's)."""
@@ -240,25 +230,13 @@ def _same_view(stack: np.ndarray, start: FloatImage, agreement: float) -> int:
     by up to ``PAN_REACH`` (a light that switched, a camera that moved, stays so:
     the run is sought by halving)."""
 
-    height, width = start.shape
-    taper = (
-        cv2.createHanningWindow((width, height), cv2.CV_32F)
-        if min(height, width) >= LEAST_SHIFT_SIDE
-        else None
-    )
-
     def same(stop: int) -> bool:
         window = _median(stack[stop - END_SAMPLES : stop])
         if np.mean(np.abs(window - start) > agreement) > VIEW_CHANGED_SHARE:
             return False
-        if taper is None:
-            return True
         # A camera knocked a few pixels changes little more than the scene's edges: the
         # view shifted is sought, and taken where it explains the change.
-        # Copies: OpenCV 5.0's phaseCorrelate applies the window to its inputs in place.
-        (dx, dy), _ = cv2.phaseCorrelate(start.copy(), window.copy(), taper)
-        moved = CAMERA_MOVED_PX <= math.hypot(dx, dy) <= PAN_REACH * width
-        return not (moved and shift_explains(start, window, dx, dy, agreement))
+        return moved_view(start, window, agreement, CAMERA_MOVED_PX) is None
 
     if same(len(stack)):
         return len(stack)

@@ -14,6 +14,12 @@ VIEW_SHIFT_REACH = 0.08
 width: a knock moves the view a few pixels; a larger shift between two pictures is a pan
 (not followed) or what an object's own move looks like on a plain scene."""
 
+PAN_REACH = 0.5
+"""The largest shift of a view sought where the camera may have turned (a pan) between two
+pictures (the start of a clip and a later stretch of it), as a share of the picture's
+width. Where the scene's detail is one object's, its own move is not taken for the view's
+(``shift_explains``)."""
+
 SHIFT_EXPLAINS = 0.25
 """A shift explains a change when, with the reference moved by it, at most this share of
 the pixels that differed still differ (the objects in view)..."""
@@ -55,6 +61,29 @@ def shifted(
     return cv2.warpAffine(
         image, move, size, dst=into, flags=flags, borderMode=cv2.BORDER_TRANSPARENT
     )
+
+
+LEAST_SHIFT_SIDE = 16
+"""Pixels: a picture narrower (or lower) than this is not searched for a moved view."""
+
+
+def moved_view(
+    reference: np.ndarray, picture: np.ndarray, threshold: float, least_px: float, step: int = 1
+) -> tuple[float, float] | None:
+    """How far (x, y pixels) the whole view moved from ``reference`` to ``picture``
+    (float32 grey levels): the shift phase correlation finds, where it is ``least_px`` to
+    ``PAN_REACH`` of the width and explains how the picture differs by more than
+    ``threshold`` (``shift_explains``, on every ``step``-th row and column). None where
+    no shift does, or the pictures are too small to tell (``LEAST_SHIFT_SIDE``)."""
+    height, width = reference.shape
+    if min(height, width) < LEAST_SHIFT_SIDE:
+        return None
+    taper = cv2.createHanningWindow((width, height), cv2.CV_32F)
+    # Copies: OpenCV 5.0's phaseCorrelate applies the window to its inputs in place.
+    (dx, dy), _ = cv2.phaseCorrelate(reference.copy(), picture.copy(), taper)
+    if not least_px <= math.hypot(dx, dy) <= PAN_REACH * width:
+        return None
+    return (dx, dy) if shift_explains(reference, picture, dx, dy, threshold, step) else None
 
 
 def shift_explains(

@@ -29,6 +29,31 @@ def test_ids_persist_and_speed_is_distance_times_frame_rate():
     assert last.speed_px_s == pytest.approx(30.0, rel=0.01)
 
 
+def streak(x, y):
+    """A raindrop's streak: as long as its fall while the shutter is open, 6 x 24 px."""
+    return det(x, y, 6, 24)
+
+
+def test_what_jumps_past_its_own_length_each_frame_is_not_reported():
+    # Drops falling 34 px a frame at 25 fps (850 px/s), each box left behind by the
+    # next, beside a walker 8 px a frame.
+    tracker = Tracker()
+    frames = [
+        [streak(100, 10 + 34 * i), streak(300, 40 + 34 * i), det(20 + 8 * i, 200, 30, 70)]
+        for i in range(12)
+    ]
+    out = [tracker.update(dets, i / 25.0) for i, dets in enumerate(frames)]
+    assert {d.track_id for frame in out for d in frame} == {1}
+    assert all(d.box.w == 30 for frame in out for d in frame)
+
+
+def test_a_fast_object_is_reported_where_frames_are_too_far_apart_to_tell():
+    # A car 40 px long at 5 fps, 45 px a frame (225 px/s): it does not overlap itself.
+    tracker = Tracker()
+    out = [tracker.update([det(45 * i, 50, 40, 30)], i / 5.0) for i in range(6)]
+    assert [d.track_id for frame in out[1:] for d in frame] == [1] * 5
+
+
 @pytest.mark.parametrize("objects", [3, 12])
 def test_a_crowd_keeps_its_ids_and_speeds(objects):
     """A few objects (each pairing checked one by one) and a crowd (past

@@ -12,10 +12,11 @@ A track is reported once it has been seen ``min_hits`` times and has moved
 away from where it was born, or seen ``min_hits_in_place`` times if it has
 not (Motion's ``minimum_motion_frames``, kept short for what moves): swaying
 leaves and start-up ghosts flicker in place, objects move on. Nor is a track
-reported while it only jumps: from one frame to the next its box leaves the
-last one behind. A raindrop's streak is as long as its fall while the shutter
-is open, shorter than its fall from one frame to the next; an object's own
-length keeps its boxes overlapping unless it is tiny or extremely fast. Velocity is a
+reported while it only jumps: from one frame to the next (at 15 frames a
+second or more) its box leaves the last one behind. A raindrop's streak is as
+long as its fall while the shutter is open, shorter than its fall from one
+frame to the next; an object's own length keeps its boxes overlapping unless
+it is tiny or extremely fast. Velocity is a
 Theil-Sen line through the recent centroids, so a frame or two of a blob
 splitting or dragging a remnant along does not tilt it; while the frame's edge
 cuts an object (it enters or leaves), through the side of its box that is
@@ -62,9 +63,10 @@ class Track:
     moved: bool = False
     """Whether it has ever been further than ``in_place_px`` from its origin."""
     jumped: bool = False
-    """Whether two of its sightings ``jump_gap_s`` apart or less did not overlap..."""
+    """Whether it was seen in two frames in a row (``jump_gap_s`` apart or less) with boxes
+    that do not overlap..."""
     overlapped: bool = False
-    """... and whether two did."""
+    """... and whether with boxes that do."""
     extent: tuple[float, float] = (0.0, 0.0)
     """Width and height of the object as lately seen in one piece: the largest of its
     one-blob boxes, each one-blob sighting forgetting ``extent_forget`` of what it was
@@ -94,11 +96,12 @@ class TrackerConfig:
     """
     in_place_px: float = 2.0
     """Distance from its first centroid within which a track counts as in place."""
-    jump_gap_s: float = 0.12
-    """Seconds: sightings at most this far apart whose boxes do not overlap are a jump. A
-    track whose sightings only jump is not reported (rain streaks). Further apart (a
-    camera under 10 frames a second, a frame the track coasted over), an object may well
-    have moved past its own length: such sightings tell nothing either way."""
+    jump_gap_s: float = 0.07
+    """Seconds: sightings in frames in a row at most this far apart (15 frames a second or
+    more) whose boxes do not overlap are a jump; a track whose sightings only jump is not
+    reported (rain streaks). Further apart, or across a frame the track coasted over, a
+    fast object (a motorbike at 10 fps) may well have moved past its own length: such
+    sightings tell nothing either way."""
     gate_px: float = 25.0
     """Largest jump (beyond the object's own size) a detection may make to join a track."""
     together_share: float = 0.25
@@ -352,7 +355,7 @@ class Tracker:
         (``Track.extent``)."""
         position = sighting_position(detection)
         step = step_length(track.sightings.last_position, position)
-        if time_s - track.sightings.last_time <= self.config.jump_gap_s:
+        if not track.missed and time_s - track.sightings.last_time <= self.config.jump_gap_s:
             if track.box.overlaps(detection.box):
                 track.overlapped = True
             else:

@@ -10,15 +10,18 @@ import cv2
 import numpy as np
 
 VIEW_SHIFT_REACH = 0.08
-"""The largest shift of a view taken for a camera that moved, as a share of the picture's
-width: a knock moves the view a few pixels; a larger shift between two pictures is a pan
-(not followed) or what an object's own move looks like on a plain scene."""
+"""The largest shift of a view from one frame to the next taken for a knocked camera, as a
+share of the picture's width: a knock moves the view a few pixels; a larger sudden shift
+is what an object's own move looks like on a plain scene."""
 
-PAN_REACH = 0.5
+PAN_REACH = 0.25
 """The largest shift of a view sought where the camera may have turned (a pan) between two
 pictures (the start of a clip and a later stretch of it), as a share of the picture's
-width. Where the scene's detail is one object's, its own move is not taken for the view's
-(``shift_explains``)."""
+width: phase correlation finds shifts up to about 0.3 of it, and the pictures compared
+share less of the view the further it moved."""
+
+LEAST_SHIFT_SIDE = 16
+"""Pixels: a picture narrower (or lower) than this is not searched for a moved view."""
 
 SHIFT_EXPLAINS = 0.25
 """A shift explains a change when, with the reference moved by it, at most this share of
@@ -42,12 +45,17 @@ SHIFT_MAY_MISS = 0.25
 in the picture while the view moves (a camera's time stamp over plain sky, the edge of
 its housing) may be all the detail of a part or two."""
 
+SHIFT_LEAST_DETAILED = 0.5
+"""The least share of the parts that must have detail for a shift to tell a knocked
+camera: with less, the detail may all be one object's on a plain scene (a white box
+crossing a grey wall), which its own shift explains as well as a moved view would, and an
+object moving is what a motion detector reports..."""
+
 SHIFT_SPREAD = 0.5
-"""The least share of the view's width, and of its height, that the detail a shift moves
-must span for the shift to tell a moved view: detail within less may all be one
-object's on a plain scene (a white box crossing a grey wall), which its own shift
-explains as well as a moved view would, and an object moving is what a motion detector
-reports. A view's detail is spread over it, if thinly (a few signs on plain walls)."""
+"""... or, for a pan (``moved_view``), the least share of the view's width, and of its
+height, over which the pixels that the shift changes and that differ must spread: a
+view that a camera turned to may hold a few signs on plain walls, a few parts' detail;
+one object's detail, or a time stamp's that stays put, spans less."""
 
 
 def shifted(
@@ -63,18 +71,15 @@ def shifted(
     )
 
 
-LEAST_SHIFT_SIDE = 16
-"""Pixels: a picture narrower (or lower) than this is not searched for a moved view."""
-
-
 def moved_view(
-    reference: np.ndarray, picture: np.ndarray, threshold: float, least_px: float, step: int = 1
+    reference: np.ndarray, picture: np.ndarray, threshold: float, least_px: float
 ) -> tuple[float, float] | None:
     """How far (x, y pixels) the whole view moved from ``reference`` to ``picture``
-    (float32 grey levels): the shift phase correlation finds, where it is ``least_px`` to
-    ``PAN_REACH`` of the width and explains how the picture differs by more than
-    ``threshold`` (``shift_explains``, on every ``step``-th row and column). None where
-    no shift does, or the pictures are too small to tell (``LEAST_SHIFT_SIDE``)."""
+    (float32 grey levels), the camera turned or knocked between them: the shift phase
+    correlation finds, where it is ``least_px`` to ``PAN_REACH`` of the width and
+    explains how the picture differs by more than ``threshold`` (``shift_explains``, as
+    a pan). None where no shift does, or the pictures are too small to tell
+    (``LEAST_SHIFT_SIDE``)."""
     height, width = reference.shape
     if min(height, width) < LEAST_SHIFT_SIDE:
         return None
@@ -83,7 +88,8 @@ def moved_view(
     (dx, dy), _ = cv2.phaseCorrelate(reference.copy(), picture.copy(), taper)
     if not least_px <= math.hypot(dx, dy) <= PAN_REACH * width:
         return None
-    return (dx, dy) if shift_explains(reference, picture, dx, dy, threshold, step) else None
+    explained = shift_explains(reference, picture, dx, dy, threshold, pan=True)
+    return (dx, dy) if explained else None
 
 
 def shift_explains(
@@ -93,13 +99,16 @@ def shift_explains(
     dy: float,
     threshold: float,
     step: int = 1,
+    pan: bool = False,
 ) -> bool:
     """Whether ``reference`` (float32 grey levels) moved (dx, dy) explains how ``picture``
     differs from it by more than ``threshold``: compared where both views see the scene,
     on every ``step``-th row and column, the pixels that differ are some, at most
     ``SHIFT_EXPLAINS`` of them still differ from the moved reference, and in most parts
     of the view with detail enough, at least ``SHIFT_SHOWS`` of those that the move
-    changes differ. False where the views share no pixel."""
+    changes differ; those parts are ``SHIFT_LEAST_DETAILED`` of all, or, for a ``pan``,
+    what the move changes and shows spreads over ``SHIFT_SPREAD`` of the view each way.
+    False where the views share no pixel."""
     height, width = reference.shape
     margin_x, margin_y = math.ceil(abs(dx)) + 1, math.ceil(abs(dy)) + 1
     inside = (
@@ -114,19 +123,22 @@ def shift_explains(
     if not before or after > SHIFT_EXPLAINS * before:
         return False
     moves = np.abs(moved - still) > threshold
-    return _shows_in_most_parts(moves, differ & moves)
+    shown = differ & moves
+    if pan:
+        height, width = shown.shape
+        if _span(np.any(shown, axis=0)) < SHIFT_SPREAD * width:
+            return False
+        if _span(np.any(shown, axis=1)) < SHIFT_SPREAD * height:
+            return False
+    return _shows_in_most_parts(moves, shown, 0.0 if pan else SHIFT_LEAST_DETAILED)
 
 
-def _shows_in_most_parts(moves: np.ndarray, shown: np.ndarray) -> bool:
-    """Whether ``moves`` spans ``SHIFT_SPREAD`` of the view each way, and in all but
-    ``SHIFT_MAY_MISS`` of the ``SHIFT_PARTS`` x ``SHIFT_PARTS`` parts of the view where
-    ``moves`` holds ``SHIFT_DETAIL`` of the pixels, ``shown`` holds ``SHIFT_SHOWS`` of
-    them."""
+def _shows_in_most_parts(moves: np.ndarray, shown: np.ndarray, least_detailed: float) -> bool:
+    """Whether in all but ``SHIFT_MAY_MISS`` of the ``SHIFT_PARTS`` x ``SHIFT_PARTS``
+    parts of the view where ``moves`` holds ``SHIFT_DETAIL`` of the pixels, ``shown``
+    holds ``SHIFT_SHOWS`` of them, and those parts are ``least_detailed`` of all (one at
+    least)."""
     height, width = moves.shape
-    if _span(np.any(moves, axis=0)) < SHIFT_SPREAD * width:
-        return False
-    if _span(np.any(moves, axis=1)) < SHIFT_SPREAD * height:
-        return False
     rows = np.linspace(0, height, SHIFT_PARTS + 1).astype(int)
     cols = np.linspace(0, width, SHIFT_PARTS + 1).astype(int)
     detailed = missed = 0
@@ -137,7 +149,9 @@ def _shows_in_most_parts(moves: np.ndarray, shown: np.ndarray) -> bool:
             if changed >= max(1.0, SHIFT_DETAIL * moves[part].size):
                 detailed += 1
                 missed += int(np.count_nonzero(shown[part]) < SHIFT_SHOWS * changed)
-    return detailed > 0 and missed <= SHIFT_MAY_MISS * detailed
+    if detailed == 0 or detailed < least_detailed * SHIFT_PARTS * SHIFT_PARTS:
+        return False
+    return missed <= SHIFT_MAY_MISS * detailed
 
 
 def _span(held: np.ndarray) -> int:

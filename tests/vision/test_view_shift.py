@@ -77,3 +77,38 @@ def test_a_box_that_moved_across_a_plain_wall_is_no_moved_view():
     picture = np.full(SIZE, 60.0, np.float32)
     picture[40:70, 53:83] = 220.0
     assert not shift_explains(scene, picture, 3.0, 0.0, THRESHOLD)
+
+
+def test_a_knock_under_a_plain_sky_is_a_moved_view():
+    # Ground below a plain sky that fills 60% of the view: the detail is in fewer rows of
+    # the view than not, but in half of its parts.
+    scene = detailed_scene(8)
+    scene[:72] = 170.0
+    picture = moved_view(scene, 3.0, 1.0)
+    assert shift_explains(scene, picture, 3.0, 1.0, THRESHOLD)
+
+
+def test_a_time_stamp_and_one_object_are_no_pan():
+    # A plain yard with a stamp in a corner and one textured car that moved: the car's
+    # shift explains the change, and the stamp reaches across the view, but stays put.
+    scene = np.full(SIZE, 100.0, np.float32)
+    stamp = (slice(4, 16), slice(4, 36))
+    scene[stamp] = np.where(detailed_scene(7)[stamp] > 110, 250.0, 20.0)
+    car = detailed_scene(9)[60:110, 90:150]
+    scene[60:110, 80:140] = car
+    picture = scene.copy()
+    picture[60:110, 80:140] = 100.0
+    picture[60:110, 94:154] = car
+    assert not shift_explains(scene, picture, 14.0, 0.0, THRESHOLD, pan=True)
+    assert not shift_explains(scene, picture, 14.0, 0.0, THRESHOLD)
+
+
+def test_a_pan_over_signs_on_plain_walls_is_a_moved_view():
+    # Signs spread over the view, but in fewer than half of its parts: too little detail to
+    # tell a knock from one object's move, enough to tell a pan.
+    wall = np.full((120, 240), 110.0, np.float32)
+    for x, y in ((20, 15), (70, 40), (120, 80), (160, 20), (200, 95), (100, 100)):
+        wall[y : y + 12, x : x + 10] = 200.0
+    scene, panned = wall[:, :160], wall[:, 32:192]
+    assert shift_explains(scene, panned, -32.0, 0.0, THRESHOLD, pan=True)
+    assert not shift_explains(scene, panned, -32.0, 0.0, THRESHOLD)

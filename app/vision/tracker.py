@@ -43,6 +43,9 @@ DISALLOWED = 1e9
 """The cost of a pair outside the gate, for the assignment solver."""
 SMALL_ASSIGNMENT = 64
 """Up to this many (detection, track) pairs, the gate is checked in plain Python."""
+REFERENCE_FRAME_S = 1 / 25
+"""The frame period the tracker's frame counts (``max_missed``, the gate's growth) are
+given at; at higher rates they stand for as long, not for as many frames."""
 
 
 @dataclass
@@ -85,7 +88,9 @@ class Track:
 @dataclass(frozen=True)
 class TrackerConfig:
     max_missed: int = 8
-    """Frames a track coasts without a detection before it is dropped."""
+    """Frames a track coasts without a detection before it is dropped, and at least as long
+    as they last at 25 fps: at 60 fps, someone hidden by a post for a fifth of a second
+    is 12 frames unseen."""
     min_hits: int = 2
     """Sightings before a track is reported (drops one-frame flickers)."""
     min_hits_in_place: int = 3
@@ -137,7 +142,8 @@ class Tracker:
         merged, detections, tracks, predictions = self._split_merged(
             detections, tracks, predictions
         )
-        matches, unmatched = self._assign(detections, tracks, predictions)
+        coasted = [self._coasted(track, time_s) for track in tracks]
+        matches, unmatched = self._assign(detections, tracks, predictions, coasted)
         assigned, unmatched = self._join_pieces(
             [(track, detections[i]) for i, track in matches], detections, unmatched, time_s
         )
@@ -154,7 +160,10 @@ class Tracker:
             if track.key not in matched:
                 track.missed += 1
         for track in list(self.tracks.values()):
-            if track.missed > self.config.max_missed:
+            unseen_s = time_s - track.sightings.last_time
+            if track.missed > self.config.max_missed and (
+                unseen_s > self.config.max_missed * REFERENCE_FRAME_S
+            ):
                 del self.tracks[track.key]
         for det_index in unmatched:
             track = self._start(detections[det_index], time_s)
@@ -175,16 +184,20 @@ class Tracker:
         self._next_id = 1
 
     def _assign(
-        self, detections: list[Detection], tracks: list[Track], predictions: list[Point]
+        self,
+        detections: list[Detection],
+        tracks: list[Track],
+        predictions: list[Point],
+        coasted: list[float],
     ) -> tuple[list[tuple[int, Track]], list[int]]:
         if not detections:
             return [], []
         if not tracks:
             return [], list(range(len(detections)))
         allowed = (
-            self._allowed_pairs(detections, tracks, predictions)
+            self._allowed_pairs(detections, tracks, predictions, coasted)
             if len(detections) * len(tracks) <= SMALL_ASSIGNMENT
-            else self._allowed_pairs_vectorised(detections, tracks, predictions)
+            else self._allowed_pairs_vectorised(detections, tracks, predictions, coasted)
         )
         rows = [d for d, _, _ in allowed]
         cols = [t for _, t, _ in allowed]
@@ -201,13 +214,23 @@ class Tracker:
         matches = [(r, tracks[c]) for r, c in zip(rows, cols, strict=True)]
         return matches, [i for i in range(len(detections)) if i not in matched_rows]
 
-    def _gate(self, size: Distance, missed: Distance) -> Distance:
+    def _coasted(self, track: Track, time_s: float) -> float:
+        """The frames a track went unseen, as frames at 25 fps (``REFERENCE_FRAME_S``) where
+        frames come faster: what its gate widens by."""
+        unseen = (time_s - track.sightings.last_time) / REFERENCE_FRAME_S - 1.0
+        return max(0.0, min(float(track.missed), unseen))
+
+    def _gate(self, size: Distance, coasted: Distance) -> Distance:
         """How far a detection may be from a track's prediction (floats or arrays): the
         gate widens with the object's size and with each frame it went unseen."""
-        return self.config.gate_px + size * (0.5 + 0.25 * missed)
+        return self.config.gate_px + size * (0.5 + 0.25 * coasted)
 
     def _allowed_pairs(
-        self, detections: list[Detection], tracks: list[Track], predictions: list[Point]
+        self,
+        detections: list[Detection],
+        tracks: list[Track],
+        predictions: list[Point],
+        coasted: list[float],
     ) -> list[tuple[int, int, float]]:
         """(detection, track, distance) within the gate, in plain Python: a frame has a
         handful of objects, where NumPy's per-call overhead (a dozen calls) costs several
@@ -220,22 +243,26 @@ class Tracker:
             for t_index, (px, py) in enumerate(predictions):
                 cost = math.hypot(x - px, y - py)
                 size = max(detection_size, track_sizes[t_index])
-                if cost <= self._gate(size, tracks[t_index].missed):
+                if cost <= self._gate(size, coasted[t_index]):
                     allowed.append((d_index, t_index, cost))
         return allowed
 
     def _allowed_pairs_vectorised(
-        self, detections: list[Detection], tracks: list[Track], predictions: list[Point]
+        self,
+        detections: list[Detection],
+        tracks: list[Track],
+        predictions: list[Point],
+        coasted: list[float],
     ) -> list[tuple[int, int, float]]:
         """The same for a crowded frame (noise, many coasting tracks), with NumPy."""
         det_xy = np.array([d.centroid for d in detections])
         det_size = np.array([max(d.box.w, d.box.h) for d in detections], dtype=np.float64)
         track_size = np.array([max(t.box.w, t.box.h) for t in tracks], dtype=np.float64)
-        missed = np.array([t.missed for t in tracks], dtype=np.float64)
+        unseen = np.array(coasted, dtype=np.float64)
         offset = det_xy[:, None, :] - np.array(predictions)[None, :, :]
         cost = np.hypot(offset[..., 0], offset[..., 1])
         size = np.maximum(det_size[:, None], track_size[None, :])
-        rows, cols = np.nonzero(cost <= self._gate(size, missed[None, :]))
+        rows, cols = np.nonzero(cost <= self._gate(size, unseen[None, :]))
         pairs = zip(rows.tolist(), cols.tolist(), strict=True)
         return [(d, t, float(cost[d, t])) for d, t in pairs]
 

@@ -87,16 +87,17 @@ def test_both_gate_checks_allow_the_same_pairs():
     tracks = list(tracker.tracks.values())
     predictions = [track.predict(0.1) for track in tracks]
     detections = [det(rng.uniform(0, 300), rng.uniform(0, 200)) for _ in range(30)]
-    # Detections on a track's gate (25 px + 20 px x (0.5 + 0.25 x missed) away), and just
-    # inside it.
+    coasted = [tracker._coasted(track, 0.1) for track in tracks]
+    # Detections on a track's gate (25 px + 20 px x (0.5 + 0.25 x frames coasted) away),
+    # and just inside it.
     x, y = predictions[0]
-    gate = TrackerConfig().gate_px + 20 * (0.5 + 0.25 * tracks[0].missed)
+    gate = TrackerConfig().gate_px + 20 * (0.5 + 0.25 * coasted[0])
     for reach in (gate, gate - 1e-6):
         detections.append(
             Detection(Box(round(x + reach) - 10, round(y) - 10, 20, 20), (x + reach, y), 400.0)
         )
-    plain = tracker._allowed_pairs(detections, tracks, predictions)
-    vectorised = tracker._allowed_pairs_vectorised(detections, tracks, predictions)
+    plain = tracker._allowed_pairs(detections, tracks, predictions, coasted)
+    vectorised = tracker._allowed_pairs_vectorised(detections, tracks, predictions, coasted)
     assert [(d, t) for d, t, _ in plain] == [(d, t) for d, t, _ in vectorised]
     assert [c for _, _, c in plain] == pytest.approx([c for _, _, c in vectorised])
     assert (len(detections) - 1, 0) in {(d, t) for d, t, _ in plain}  # Just inside.
@@ -201,6 +202,20 @@ def test_object_hidden_for_a_few_frames_keeps_its_id():
     tracker = Tracker()
     frames = [[det(10 + 5 * i, 30)] if not 10 <= i < 14 else [] for i in range(25)]
     out = run(tracker, frames)
+    assert {d.track_id for frame in out for d in frame} == {1}
+
+
+@pytest.mark.parametrize("fps", [25.0, 60.0])
+def test_someone_hidden_by_a_post_for_a_fifth_of_a_second_keeps_the_id(fps):
+    # Walking 100 px/s behind a post: 5 frames unseen at 25 fps, 12 at 60.
+    tracker = Tracker()
+    hidden = (1.0, 1.2)
+    out = [
+        tracker.update(
+            [] if hidden[0] <= i / fps < hidden[1] else [det(100 * i / fps, 50)], i / fps
+        )
+        for i in range(round(2 * fps))
+    ]
     assert {d.track_id for frame in out for d in frame} == {1}
 
 

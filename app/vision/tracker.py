@@ -26,6 +26,7 @@ whole, which moves with it where the centroid of its visible part lags.
 from __future__ import annotations
 
 import math
+import statistics
 from collections import deque
 from dataclasses import dataclass, field, replace
 from typing import TypeVar
@@ -44,8 +45,15 @@ DISALLOWED = 1e9
 SMALL_ASSIGNMENT = 64
 """Up to this many (detection, track) pairs, the gate is checked in plain Python."""
 REFERENCE_FRAME_S = 1 / 25
-"""The frame period the tracker's frame counts (``max_missed``, the gate's growth) are
-given at; at higher rates they stand for as long, not for as many frames."""
+"""The frame period at which ``max_missed`` and the gate's growth per frame unseen are
+given: where frames come faster (``Tracker.frames_per_reference``) they stand for as long,
+not for as many frames."""
+MAX_FRAMES_PER_REFERENCE = 10.0
+"""Frames per 25-fps frame counted at most (250 fps)."""
+RATE_SLACK = 1.1
+"""A rate up to this many times 25 fps counts as 25 (a live camera's times jitter)."""
+PERIODS = 16
+"""Recent intervals between frames whose median is the frame period."""
 
 
 @dataclass
@@ -88,9 +96,9 @@ class Track:
 @dataclass(frozen=True)
 class TrackerConfig:
     max_missed: int = 8
-    """Frames a track coasts without a detection before it is dropped, and at least as long
-    as they last at 25 fps: at 60 fps, someone hidden by a post for a fifth of a second
-    is 12 frames unseen."""
+    """Frames a track coasts without a detection before it is dropped (0.32 s at 25 fps,
+    0.8 s at 10); at higher rates, as long as they last at 25 fps: at 60 fps, someone
+    hidden by a post for a fifth of a second is 12 frames unseen."""
     min_hits: int = 2
     """Sightings before a track is reported (drops one-frame flickers)."""
     min_hits_in_place: int = 3
@@ -131,6 +139,9 @@ class Tracker:
         self.tracks: dict[int, Track] = {}
         self._next_key = 1
         self._next_id = 1
+        self._periods: deque[float] = deque(maxlen=PERIODS)
+        """Recent intervals between the frames' times (positive ones)."""
+        self._last_time: float | None = None
 
     def update(self, detections: list[Detection], time_s: float) -> list[Detection]:
         """Assign ids; return the detections of confirmed tracks, with distance and speed."""
@@ -142,7 +153,11 @@ class Tracker:
         merged, detections, tracks, predictions = self._split_merged(
             detections, tracks, predictions
         )
-        coasted = [self._coasted(track, time_s) for track in tracks]
+        if self._last_time is not None and time_s > self._last_time:
+            self._periods.append(time_s - self._last_time)
+        self._last_time = time_s
+        per_reference = self.frames_per_reference()
+        coasted = [track.missed / per_reference for track in tracks]
         matches, unmatched = self._assign(detections, tracks, predictions, coasted)
         assigned, unmatched = self._join_pieces(
             [(track, detections[i]) for i, track in matches], detections, unmatched, time_s
@@ -160,10 +175,8 @@ class Tracker:
             if track.key not in matched:
                 track.missed += 1
         for track in list(self.tracks.values()):
-            unseen_s = time_s - track.sightings.last_time
-            if track.missed > self.config.max_missed and (
-                unseen_s > self.config.max_missed * REFERENCE_FRAME_S
-            ):
+            # Past the count, rounding aside (at 50 fps, 16 frames last 8 at 25 fps).
+            if track.missed > self.config.max_missed * per_reference + 1e-6:
                 del self.tracks[track.key]
         for det_index in unmatched:
             track = self._start(detections[det_index], time_s)
@@ -182,6 +195,8 @@ class Tracker:
         self.tracks.clear()
         self._next_key = 1
         self._next_id = 1
+        self._periods.clear()
+        self._last_time = None
 
     def _assign(
         self,
@@ -214,15 +229,21 @@ class Tracker:
         matches = [(r, tracks[c]) for r, c in zip(rows, cols, strict=True)]
         return matches, [i for i in range(len(detections)) if i not in matched_rows]
 
-    def _coasted(self, track: Track, time_s: float) -> float:
-        """The frames a track went unseen, as frames at 25 fps (``REFERENCE_FRAME_S``) where
-        frames come faster: what its gate widens by."""
-        unseen = (time_s - track.sightings.last_time) / REFERENCE_FRAME_S - 1.0
-        return max(0.0, min(float(track.missed), unseen))
+    def frames_per_reference(self) -> float:
+        """Frames in the time of one at 25 fps, by the median of the recent intervals
+        between frames: 1 at 25 fps or less (the counts are frames there), 2.4 at 60.
+        The median, so that a live camera's jittery times count as its rate."""
+        if not self._periods:
+            return 1.0
+        per_reference = REFERENCE_FRAME_S / statistics.median(self._periods)
+        if per_reference <= RATE_SLACK:
+            return 1.0
+        return min(per_reference, MAX_FRAMES_PER_REFERENCE)
 
     def _gate(self, size: Distance, coasted: Distance) -> Distance:
         """How far a detection may be from a track's prediction (floats or arrays): the
-        gate widens with the object's size and with each frame it went unseen."""
+        gate widens with the object's size and with each frame it went unseen (``coasted``:
+        as frames at 25 fps, where frames come faster)."""
         return self.config.gate_px + size * (0.5 + 0.25 * coasted)
 
     def _allowed_pairs(

@@ -293,7 +293,7 @@ class CameraWorker:
     def _handle(self, frame: SourceFrame) -> None:
         now_mono = time.monotonic()
         now = time.time()
-        self._apply_pending(frame)
+        self._apply_pending(frame, now_mono)
         self.frames += 1
         self._times.append(now_mono)
         if len(self._times) >= 2 and self._times[-1] > self._times[0]:
@@ -342,7 +342,7 @@ class CameraWorker:
         if now_mono - self._last_status >= self.settings.status_interval_s:
             self._publish_status()
 
-    def _apply_pending(self, frame: SourceFrame) -> None:
+    def _apply_pending(self, frame: SourceFrame, now_mono: float) -> None:
         with self._lock:
             pending, self._pending = self._pending, {}
             want_active = self._want_active
@@ -358,7 +358,7 @@ class CameraWorker:
             self._pipeline = self._new_pipeline(self._frame_rate())
             self._start_from_glances(self._pipeline, frame)
             self._alarms = AlarmLogic(self.settings.quiet_s, self.settings.alarm_gap_s)
-            self._activated_at = time.monotonic()
+            self._activated_at = now_mono  # The first frame detected is at 0 s.
         elif not want_active and self._pipeline is not None:
             self._deactivate()
         pipeline = self._pipeline

@@ -87,7 +87,7 @@ def test_both_gate_checks_allow_the_same_pairs():
     tracks = list(tracker.tracks.values())
     predictions = [track.predict(0.1) for track in tracks]
     detections = [det(rng.uniform(0, 300), rng.uniform(0, 200)) for _ in range(30)]
-    coasted = [tracker._coasted(track, 0.1) for track in tracks]
+    coasted = [float(track.missed) for track in tracks]  # All at one time: 25 fps or less.
     # Detections on a track's gate (25 px + 20 px x (0.5 + 0.25 x frames coasted) away),
     # and just inside it.
     x, y = predictions[0]
@@ -217,6 +217,31 @@ def test_someone_hidden_by_a_post_for_a_fifth_of_a_second_keeps_the_id(fps):
         for i in range(round(2 * fps))
     ]
     assert {d.track_id for frame in out for d in frame} == {1}
+
+
+@pytest.mark.parametrize("start", range(2, 40, 7))
+def test_hidden_for_as_long_as_8_frames_at_25_fps_keeps_the_id_at_50(start):
+    # 16 frames at 50 fps, however far into the clip (the times' rounding aside).
+    tracker = Tracker()
+    for i in range(start):
+        tracker.update([det(100, 50)], i / 50)
+    for i in range(start, start + 16):
+        tracker.update([], i / 50)
+    (back,) = tracker.update([det(100, 50)], (start + 16) / 50)
+    assert back.track_id == 1
+
+
+def test_a_jittery_25_fps_camera_counts_frames_and_frozen_times_drop_tracks():
+    tracker = Tracker()
+    rng = random.Random(1)
+    time_s = 0.0
+    for _ in range(50):
+        time_s += 0.04 + rng.gauss(0.0, 0.005)
+        tracker.update([det(100, 50)], time_s)
+    assert tracker.frames_per_reference() == 1.0
+    for _ in range(9):  # A source that repeats one time: tracks still end, by frames.
+        tracker.update([], time_s)
+    assert not tracker.tracks
 
 
 def test_object_gone_too_long_gets_a_new_id():

@@ -60,10 +60,10 @@ MIN_DETECT_WIDTH = 32
 
 WHOLE_VIEW_SHARE = 0.8
 """Motion over more than this share of the view (outside its ignore zones), from a method
-that does not judge such
-changes itself (``judges_whole_view``), is the view changing at once (a flash, a light
-switched, the method's first frames: OpenCV's KNN calls the whole of its first frames
-motion), not objects: none are reported from it, and no track takes its size."""
+that does not judge such changes itself (``judges_whole_view``), is the view changing at
+once (a flash, a light switched, the method's first frames: OpenCV's KNN calls the whole
+of its first frames motion), not objects: none are reported from it, and no track takes
+its size."""
 
 
 @dataclass(frozen=True, slots=True)

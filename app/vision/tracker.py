@@ -142,6 +142,8 @@ class Tracker:
         self._periods: deque[float] = deque(maxlen=PERIODS)
         """Recent intervals between the frames' times (positive ones)."""
         self._last_time: float | None = None
+        self._per_reference = 1.0
+        """``frames_per_reference`` as of this frame (the gates read it)."""
 
     def update(self, detections: list[Detection], time_s: float) -> list[Detection]:
         """Assign ids; return the detections of confirmed tracks, with distance and speed."""
@@ -156,9 +158,8 @@ class Tracker:
         if self._last_time is not None and time_s > self._last_time:
             self._periods.append(time_s - self._last_time)
         self._last_time = time_s
-        per_reference = self.frames_per_reference()
-        coasted = [track.missed / per_reference for track in tracks]
-        matches, unmatched = self._assign(detections, tracks, predictions, coasted)
+        self._per_reference = self.frames_per_reference()
+        matches, unmatched = self._assign(detections, tracks, predictions)
         assigned, unmatched = self._join_pieces(
             [(track, detections[i]) for i, track in matches], detections, unmatched, time_s
         )
@@ -176,7 +177,7 @@ class Tracker:
                 track.missed += 1
         for track in list(self.tracks.values()):
             # Past the count, rounding aside (at 50 fps, 16 frames last 8 at 25 fps).
-            if track.missed > self.config.max_missed * per_reference + 1e-6:
+            if track.missed > self.config.max_missed * self._per_reference + 1e-6:
                 del self.tracks[track.key]
         for det_index in unmatched:
             track = self._start(detections[det_index], time_s)
@@ -197,22 +198,19 @@ class Tracker:
         self._next_id = 1
         self._periods.clear()
         self._last_time = None
+        self._per_reference = 1.0
 
     def _assign(
-        self,
-        detections: list[Detection],
-        tracks: list[Track],
-        predictions: list[Point],
-        coasted: list[float],
+        self, detections: list[Detection], tracks: list[Track], predictions: list[Point]
     ) -> tuple[list[tuple[int, Track]], list[int]]:
         if not detections:
             return [], []
         if not tracks:
             return [], list(range(len(detections)))
         allowed = (
-            self._allowed_pairs(detections, tracks, predictions, coasted)
+            self._allowed_pairs(detections, tracks, predictions)
             if len(detections) * len(tracks) <= SMALL_ASSIGNMENT
-            else self._allowed_pairs_vectorised(detections, tracks, predictions, coasted)
+            else self._allowed_pairs_vectorised(detections, tracks, predictions)
         )
         rows = [d for d, _, _ in allowed]
         cols = [t for _, t, _ in allowed]
@@ -240,18 +238,14 @@ class Tracker:
             return 1.0
         return min(per_reference, MAX_FRAMES_PER_REFERENCE)
 
-    def _gate(self, size: Distance, coasted: Distance) -> Distance:
+    def _gate(self, size: Distance, missed: Distance) -> Distance:
         """How far a detection may be from a track's prediction (floats or arrays): the
-        gate widens with the object's size and with each frame it went unseen (``coasted``:
-        as frames at 25 fps, where frames come faster)."""
-        return self.config.gate_px + size * (0.5 + 0.25 * coasted)
+        gate widens with the object's size and with each frame it went unseen, counted as
+        frames at 25 fps where frames come faster (``frames_per_reference``)."""
+        return self.config.gate_px + size * (0.5 + 0.25 * missed / self._per_reference)
 
     def _allowed_pairs(
-        self,
-        detections: list[Detection],
-        tracks: list[Track],
-        predictions: list[Point],
-        coasted: list[float],
+        self, detections: list[Detection], tracks: list[Track], predictions: list[Point]
     ) -> list[tuple[int, int, float]]:
         """(detection, track, distance) within the gate, in plain Python: a frame has a
         handful of objects, where NumPy's per-call overhead (a dozen calls) costs several
@@ -264,26 +258,22 @@ class Tracker:
             for t_index, (px, py) in enumerate(predictions):
                 cost = math.hypot(x - px, y - py)
                 size = max(detection_size, track_sizes[t_index])
-                if cost <= self._gate(size, coasted[t_index]):
+                if cost <= self._gate(size, tracks[t_index].missed):
                     allowed.append((d_index, t_index, cost))
         return allowed
 
     def _allowed_pairs_vectorised(
-        self,
-        detections: list[Detection],
-        tracks: list[Track],
-        predictions: list[Point],
-        coasted: list[float],
+        self, detections: list[Detection], tracks: list[Track], predictions: list[Point]
     ) -> list[tuple[int, int, float]]:
         """The same for a crowded frame (noise, many coasting tracks), with NumPy."""
         det_xy = np.array([d.centroid for d in detections])
         det_size = np.array([max(d.box.w, d.box.h) for d in detections], dtype=np.float64)
         track_size = np.array([max(t.box.w, t.box.h) for t in tracks], dtype=np.float64)
-        unseen = np.array(coasted, dtype=np.float64)
+        missed = np.array([t.missed for t in tracks], dtype=np.float64)
         offset = det_xy[:, None, :] - np.array(predictions)[None, :, :]
         cost = np.hypot(offset[..., 0], offset[..., 1])
         size = np.maximum(det_size[:, None], track_size[None, :])
-        rows, cols = np.nonzero(cost <= self._gate(size, unseen[None, :]))
+        rows, cols = np.nonzero(cost <= self._gate(size, missed[None, :]))
         pairs = zip(rows.tolist(), cols.tolist(), strict=True)
         return [(d, t, float(cost[d, t])) for d, t in pairs]
 

@@ -21,7 +21,7 @@ from tests.api.vigil_livekit import (
     MjpegCamera,
     Running,
     add_camera,
-    free_socket,
+    free_port,
     hold_answers,
     live_settings,
     running_server,
@@ -86,9 +86,7 @@ def alarm(camera_id: int, event_id: int, ts: float, name: str = "yard") -> dict[
 def test_pictures_come_back_after_a_server_restart_and_cards_say_when_it_is_away(
     page: Any, motion_video: Path, tmp_path: Path
 ) -> None:
-    probe = free_socket()
-    port = probe.getsockname()[1]
-    probe.close()
+    port = free_port()
     settings = live_settings(tmp_path / "data")
     errors: list[str] = []
     page.on("pageerror", lambda error: errors.append(str(error)))
@@ -552,15 +550,22 @@ def test_a_settings_answer_that_comes_late_does_not_undo_a_newer_state(
         camera.stop()
 
 
+def open_demo_card(serve: Callable[..., Running], page: Any) -> tuple[Running, int, Any]:
+    """A server with its demo camera, and the page open on it: the server, the camera's id
+    and its card (a locator: the card may not be drawn yet)."""
+    server = serve(demo_camera=True)
+    cam = httpx.get(f"{server.base}/api/cameras").json()[0]["id"]
+    page.goto(server.base + "/")
+    return server, cam, page.locator(f'.card[data-id="{cam}"]')
+
+
 def test_a_listing_asked_for_before_a_change_does_not_undo_it(
     serve: Callable[..., Running], page: Any
 ) -> None:
     # Settings come in no status message: a listing asked for before the method was
     # changed, answered after, showed the old method until the next listing (15 s).
-    server = serve(demo_camera=True)
-    demo = httpx.get(f"{server.base}/api/cameras").json()[0]["id"]
-    page.goto(server.base + "/")
-    method = page.locator(f'.card[data-id="{demo}"] .method')
+    server, demo, card = open_demo_card(serve, page)
+    method = card.locator(".method")
     wait_for(lambda: method.count() and method.input_value() == "adaptive", 20, "the card")
     held = hold_answers(page, LISTING)
     add_camera(server.base, "demo", name="yard")  # The page asks for the list.
@@ -586,9 +591,7 @@ def test_an_alarm_open_when_the_server_restarts_shows_its_end_after(
 ) -> None:
     # A restart ends the open event in the database, but no motion_end reaches a page:
     # its entry said "moving…" until the page was reloaded.
-    probe = free_socket()
-    port = probe.getsockname()[1]
-    probe.close()
+    port = free_port()
     settings = live_settings(tmp_path / "data", quiet_s=30.0)  # Open until the restart.
     with running_server(settings, port, graceful_s=1) as server:
         add_camera(server.base, f"file://{motion_video}", name="lane", activate=True)
@@ -607,10 +610,7 @@ def test_a_change_made_elsewhere_shows_on_an_open_page_at_once(
 ) -> None:
     # A PATCH from a script or another tab reached an open page at its next listing of
     # the cameras, up to 15 s on: "auto (33)" with the slider where it was (live audit).
-    server = serve(demo_camera=True)
-    cam = httpx.get(f"{server.base}/api/cameras").json()[0]["id"]
-    page.goto(server.base + "/")
-    card = page.locator(f'.card[data-id="{cam}"]')
+    server, cam, card = open_demo_card(serve, page)
     wait_for(lambda: card.locator(".state").inner_text() == "live", 20, "the card")
     changed = {"sensitivity": 33, "name": "porch", "method": "frame-difference"}
     httpx.patch(f"{server.base}/api/cameras/{cam}", json=changed).raise_for_status()

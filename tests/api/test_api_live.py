@@ -22,7 +22,7 @@ from tests.api.vigil_livekit import (
     add_camera,
     background,
     frame_at,
-    free_socket,
+    free_port,
     read_mjpeg_frames,
     wait_for,
 )
@@ -114,9 +114,7 @@ def test_a_viewer_that_leaves_is_let_go_with_frames_coming_or_not(
     server = serve()
     cameras = server.server.config.app.state.services.cameras
     live = _add(server, motion_video)
-    probe = free_socket()
-    port = probe.getsockname()[1]
-    probe.close()  # Nothing listens there: a camera that sends no frames.
+    port = free_port()  # Nothing listens there: a camera that sends no frames.
     silent = add_camera(server.base, f"http://127.0.0.1:{port}/video.mjpg", name="gone")
     for camera_id, parts in ((live, 3), (silent, 0)):
         hub = cameras.get(camera_id).hub

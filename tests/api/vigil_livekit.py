@@ -77,6 +77,15 @@ def free_socket(port: int = 0) -> socket.socket:
     return sock
 
 
+def free_port() -> int:
+    """A port on 127.0.0.1 that nothing listens on (for a server to restart at, or a
+    camera that never answers)."""
+    probe = free_socket()
+    port: int = probe.getsockname()[1]
+    probe.close()
+    return port
+
+
 def wait_for(
     condition: Callable[[], Any], timeout: float, what: str, interval: float = 0.05
 ) -> Any:

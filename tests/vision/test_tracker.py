@@ -87,17 +87,16 @@ def test_both_gate_checks_allow_the_same_pairs():
     tracks = list(tracker.tracks.values())
     predictions = [track.predict(0.1) for track in tracks]
     detections = [det(rng.uniform(0, 300), rng.uniform(0, 200)) for _ in range(30)]
-    coasted = [float(track.missed) for track in tracks]  # All at one time: 25 fps or less.
-    # Detections on a track's gate (25 px + 20 px x (0.5 + 0.25 x frames coasted) away),
-    # and just inside it.
+    # Detections on a track's gate (25 px + 20 px x (0.5 + 0.25 x missed) away), and just
+    # inside it (all at one time: frames count as at 25 fps).
     x, y = predictions[0]
-    gate = TrackerConfig().gate_px + 20 * (0.5 + 0.25 * coasted[0])
+    gate = TrackerConfig().gate_px + 20 * (0.5 + 0.25 * tracks[0].missed)
     for reach in (gate, gate - 1e-6):
         detections.append(
             Detection(Box(round(x + reach) - 10, round(y) - 10, 20, 20), (x + reach, y), 400.0)
         )
-    plain = tracker._allowed_pairs(detections, tracks, predictions, coasted)
-    vectorised = tracker._allowed_pairs_vectorised(detections, tracks, predictions, coasted)
+    plain = tracker._allowed_pairs(detections, tracks, predictions)
+    vectorised = tracker._allowed_pairs_vectorised(detections, tracks, predictions)
     assert [(d, t) for d, t, _ in plain] == [(d, t) for d, t, _ in vectorised]
     assert [c for _, _, c in plain] == pytest.approx([c for _, _, c in vectorised])
     assert (len(detections) - 1, 0) in {(d, t) for d, t, _ in plain}  # Just inside.

@@ -358,6 +358,13 @@ def in_view_scenes() -> dict[str, Scene]:
             frames=150,
             objects=(MovingObject((120, 90), (8.0, 0.0), (40, 60), 160),),
         ),
+        # Dark on the textured ground and slow (0.4 px a frame): it barely stirs from
+        # one frame to the next, and parts of its rim match the ground.
+        "slow-dark-in-view": Scene(
+            name="slow-dark-in-view",
+            frames=150,
+            objects=(MovingObject((60, 100), (6.0, 0.0), (30, 60), 50),),
+        ),
         "fast-in-view": Scene(
             name="fast-in-view",
             frames=60,

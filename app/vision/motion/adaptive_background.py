@@ -242,6 +242,9 @@ class AdaptiveBackground(MotionMethod):
         self._frame_index = 0
         self._scene: SceneBackground | None = None
         """A scene to start from (``seed``), until the first frame."""
+        self._started_from_scene = False
+        """Whether the model started from a scene estimated ahead (``_start_from``), not
+        from a first frame."""
 
     def set_fps(self, fps: float) -> None:
         super().set_fps(fps)
@@ -298,6 +301,7 @@ class AdaptiveBackground(MotionMethod):
         self._model[kernels.ALTERNATE] = scene.background
         self._model[kernels.DEVIATION] = scene.variability
         self._frame_index = END_SAMPLES
+        self._started_from_scene = True
 
     def _step(self, gray: GrayImage, followed: bool) -> MotionResult:
         """This frame against the model; ``followed``: the second time, once the model
@@ -313,6 +317,10 @@ class AdaptiveBackground(MotionMethod):
         assert self._previous_mask is not None
         threshold = float(self.threshold)
         learning = self._frame_index <= self.learning_frames
+        # Started from a first frame, what it held leaves ghosts: while the scene is
+        # learned, they are what is most likely to be moving without a stir. Started
+        # from a scene estimated ahead, what moves is mostly objects, as later on.
+        ghosts_expected = learning and not self._started_from_scene
         raw_plane = kernels.RAW[0] + kernels.RAW[1] - self._raw_plane
         # Past this share of the frame moving, the noise is measured on still pixels
         # only (the estimate, a median, stays put while up to a fair share moves; a
@@ -336,9 +344,10 @@ class AdaptiveBackground(MotionMethod):
         # The guard lasts a few frames past an object's last stir, so that one that
         # stopped mostly reaches the stale-region check with its outline whole (which
         # then keeps it whole); longer, and a ghost joined to the object it came from is
-        # eaten late. Not while the scene is learned: what stirs then is mostly ghosts
-        # of what was in the first frame.
-        settings[kernels.GUARD_FRAMES] = 1 if learning else min(self.check_every // 2 + 1, 255)
+        # eaten late. Not while ghosts of a first frame are expected: what stirs then is
+        # mostly the objects they came from.
+        guard_frames = 1 if ghosts_expected else min(self.check_every // 2 + 1, 255)
+        settings[kernels.GUARD_FRAMES] = guard_frames
         self._set_threshold(threshold, rates, settings)
         bounds = np.empty(kernels.BOUNDS)
         bounds[kernels.GAIN_LIMIT] = GAIN_INLIERS * threshold
@@ -351,8 +360,10 @@ class AdaptiveBackground(MotionMethod):
         )
         outputs = np.empty((kernels.OUTPUTS, *gray.shape), np.uint8)
         difference, mask = outputs[kernels.DIFFERENCE], outputs[kernels.MASK]
-        # Stirring: changed since the previous frame, or since ``check_every`` back.
-        lagged = gray if learning else self._recent[0]
+        # Stirring: changed since the previous frame, or since ``check_every`` back (or
+        # since the scene a model started from, for its first frames): an object creeping
+        # a fraction of a pixel a frame stirs and is guarded.
+        lagged = gray if ghosts_expected else self._recent[0]
         arguments = (
             gray,
             self._recent[-1],
@@ -610,6 +621,7 @@ class AdaptiveBackground(MotionMethod):
         self._still_frames = None
         self._frame_index = 0
         self._scene = None
+        self._started_from_scene = False
 
 
 def _vertex_offset(values: np.ndarray) -> float:

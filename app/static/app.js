@@ -51,7 +51,14 @@ async function api(method, url, body) {
     options.headers["Content-Type"] = "application/json";
     options.body = JSON.stringify(body);
   }
-  const response = await fetch(url, options);
+  let response;
+  try {
+    response = await fetch(url, options);
+  } catch (_) {
+    // No answer at all (server down, network gone): the browser's own words ("Failed to
+    // fetch") tell a user nothing.
+    throw new Error("Server unreachable: try again when it is back");
+  }
   if (response.status === 401) {
     toLogin();
     throw new Error("logged out");
@@ -491,7 +498,9 @@ function updateCard(card, camera) {
   if (document.activeElement !== slider) {
     const automatic = camera.sensitivity === null || camera.sensitivity === undefined;
     auto.checked = automatic;
+    // Automatic: the slider shows the threshold in force, so a nudge starts from there.
     if (!automatic) slider.value = camera.sensitivity;
+    else if (camera.threshold !== null && camera.threshold !== undefined) slider.value = Math.round(camera.threshold);
     const inForce = camera.threshold === null || camera.threshold === undefined ? "" : ` (${Math.round(camera.threshold)})`;
     $(".sens-value", card).textContent = automatic ? `auto${inForce}` : Math.round(camera.sensitivity);
   }
@@ -527,7 +536,11 @@ function startPictures(card, id) {
   card._loops = [];
   card._started = true;
   card._still = null;
-  if (card._mode !== "poll") {
+  if (card._mode !== "poll" && document.hidden) {
+    // A hidden page holds no stream (see "visibilitychange"): opened when it is shown.
+    img.removeAttribute("src");
+    img.classList.add("broken");
+  } else if (card._mode !== "poll") {
     img.onload = () => img.classList.remove("broken");
     img.onerror = () => {
       img.classList.add("broken");
@@ -600,6 +613,15 @@ function restartPictures(card, modeChanged = false) {
   }
   startPictures(card, Number(card.dataset.id));
 }
+
+/* A tab in the background keeps its connections: a forgotten one with its streams open
+   leaves too few for a new tab of the dashboard, whose requests would then wait for
+   ever. A hidden page closes its streams (polled pictures already wait while it is
+   hidden) and opens them again when shown. */
+document.addEventListener("visibilitychange", () => {
+  for (const card of state.cards.values()) if (card._mode !== "poll") restartPictures(card);
+  showAnalysisStreams();
+});
 
 /* An MJPEG <img> fires no event when its stream ends or stalls: it just keeps the last
    picture. Every few seconds the picture of each streamed live camera is sampled; one
@@ -1045,8 +1067,18 @@ function setStatus(panel, id, status) {
   const view = $(".live-view", panel);
   if (status === "running" && !$("img", view)) {
     // A live stream holds a connection: one camera fewer streams meanwhile.
-    view.innerHTML = `<img class="streaming" alt="analysis in progress" src="/api/analyses/${id}/stream.mjpg">`;
+    view.innerHTML = `<img class="streaming" alt="analysis in progress" data-stream="/api/analyses/${id}/stream.mjpg">`;
+    showAnalysisStreams();
     assignPictureModes();
+  }
+}
+
+/* The streams of the analyses watched live: open while the page is shown, closed while
+   it is hidden (each still counts against STREAM_BUDGET: it comes back when shown). */
+function showAnalysisStreams() {
+  for (const img of $$("#analyses .live-view img.streaming")) {
+    if (document.hidden) img.removeAttribute("src");
+    else if (!img.getAttribute("src")) img.src = img.dataset.stream;
   }
 }
 

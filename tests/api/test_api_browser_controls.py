@@ -1,0 +1,129 @@
+"""The dashboard's controls and connections in a real Chromium (Playwright): the sensitivity
+slider in auto mode, an action while the server is down, a tab left in the background."""
+
+from __future__ import annotations
+
+import re
+from collections.abc import Callable
+from pathlib import Path
+from typing import Any
+
+import httpx
+import pytest
+
+from tests.api.vigil_livekit import Running, add_camera, wait_for, wait_for_pictures
+
+pytestmark = pytest.mark.browser
+
+STREAMS_OPEN = "() => document.querySelectorAll('img[src*=\".mjpg\"]').length"
+"""How many pictures on the page hold an MJPEG stream."""
+
+
+def set_hidden(page: Any, hidden: bool) -> None:
+    """The page goes to the background (or comes back), as a tab switch tells it."""
+    page.evaluate(
+        """(hidden) => {
+          if (hidden) {
+            Object.defineProperty(document, 'hidden', { configurable: true, get: () => true });
+            Object.defineProperty(document, 'visibilityState',
+              { configurable: true, get: () => 'hidden' });
+          } else {
+            delete document.hidden;
+            delete document.visibilityState;
+          }
+          document.dispatchEvent(new Event('visibilitychange'));
+        }""",
+        hidden,
+    )
+
+
+def test_the_slider_in_auto_mode_shows_the_threshold_in_force_and_a_nudge_starts_there(
+    serve: Callable[..., Running], page: Any
+) -> None:
+    # In auto mode the slider sat at 128 whatever the threshold: with "auto (10)" shown,
+    # one ArrowLeft (asking for more sensitivity) stored 127, far less sensitive.
+    server = serve(demo_camera=True)
+    cam = httpx.get(f"{server.base}/api/cameras").json()[0]["id"]
+    httpx.post(f"{server.base}/api/cameras/{cam}/activate").raise_for_status()
+    page.goto(server.base + "/")
+    card = page.locator(f'.card[data-id="{cam}"]')
+    shown = card.locator(".sens-value")
+    wait_for(
+        lambda: shown.count() and re.fullmatch(r"auto \(\d+\)", shown.inner_text()),
+        20,
+        "the threshold in force",
+    )
+    slider = card.locator("input.sensitivity")
+    slider.focus()  # The card no longer redraws the slider nor its value.
+    threshold = int(re.fullmatch(r"auto \((\d+)\)", shown.inner_text()).group(1))
+    assert int(slider.input_value()) == threshold
+    slider.press("ArrowLeft")
+    wait_for(
+        lambda: httpx.get(f"{server.base}/api/cameras/{cam}").json()["sensitivity"] is not None,
+        10,
+        "the sensitivity set on the server",
+    )
+    stored = httpx.get(f"{server.base}/api/cameras/{cam}").json()["sensitivity"]
+    assert stored == max(1, threshold - 1)
+    assert not card.locator("input.auto").is_checked()
+
+
+def test_an_action_while_the_server_is_unreachable_says_so_in_words(
+    serve: Callable[..., Running], page: Any
+) -> None:
+    # A fetch that gets no answer rejects with the browser's "Failed to fetch", which the
+    # toast showed as it was.
+    server = serve(demo_camera=True)
+    cam = httpx.get(f"{server.base}/api/cameras").json()[0]["id"]
+    page.goto(server.base + "/")
+    method = page.locator(f'.card[data-id="{cam}"] .method')
+    wait_for(lambda: method.count() and method.input_value() == "adaptive", 20, "the card")
+    page.route(
+        f"**/api/cameras/{cam}",
+        lambda route: (
+            route.abort("connectionrefused")
+            if route.request.method == "PATCH"
+            else route.continue_()
+        ),
+    )
+    method.select_option("frame-difference")
+    error = page.locator("#toasts .toast-error")
+    error.first.wait_for(timeout=10000)
+    text = error.first.inner_text()
+    assert "Server unreachable: try again when it is back" in text, text
+    assert "Failed to fetch" not in text
+    assert method.input_value() == "adaptive"  # Back to the method in force.
+
+
+def test_a_hidden_page_closes_its_streams_and_opens_them_again_when_shown(
+    serve: Callable[..., Running], page: Any, motion_video: Path
+) -> None:
+    # A tab in the background kept its MJPEG streams open: with the ~6 connections a
+    # browser allows a host across all tabs, a forgotten tab locked up a new one.
+    server = serve()
+    ids = [add_camera(server.base, f"file://{motion_video}", name=f"cam{i}") for i in range(2)]
+    page.goto(server.base + "/")
+    wait_for_pictures(page, 2, timeout_ms=30000)
+    cameras = server.server.config.app.state.services.cameras
+    hubs = [cameras.get(cam).hub for cam in ids]
+    assert page.evaluate(STREAMS_OPEN) == 2
+    assert all(hub.watching["picture"] >= 1 for hub in hubs)
+    set_hidden(page, True)
+    # An analysis watched live meanwhile opens no stream either.
+    page.evaluate("() => setStatus(analysisPanel('a1', 'clip.avi'), 'a1', 'running')")
+    assert page.evaluate(STREAMS_OPEN) == 0
+    # The server sees the streams' viewers go (it checks every second).
+    wait_for(lambda: all(hub.watching["picture"] == 0 for hub in hubs), 5, "the streams to close")
+    page.wait_for_timeout(2500)  # Nothing reopens them while hidden (no retry, no stall).
+    assert page.evaluate(STREAMS_OPEN) == 0
+    assert all(hub.watching["picture"] == 0 for hub in hubs)
+    set_hidden(page, False)
+    wait_for(lambda: all(hub.watching["picture"] >= 1 for hub in hubs), 10, "the streams back")
+    assert page.evaluate(STREAMS_OPEN) == 3  # Both cameras and the analysis.
+    sources = page.locator(".card img.live").evaluate_all("imgs => imgs.map(i => i.src)")
+    assert all("stream.mjpg" in s for s in sources), sources
+    page.wait_for_function(
+        "() => [...document.querySelectorAll('.card img.live')]"
+        ".every(i => i.naturalWidth > 0 && !i.classList.contains('broken'))",
+        timeout=10000,
+    )

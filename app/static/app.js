@@ -1212,6 +1212,10 @@ function updateZipSelected() {
   const link = $("#zip-selected");
   link.href = ids.length ? `/api/snapshots.zip?ids=${ids.join(",")}` : "#";
   link.classList.toggle("disabled", !ids.length);
+  // "select all" says what is ticked: a snapshot that arrives after it was ticked comes
+  // unticked (the user has not seen it to delete it), and so unticks it.
+  const shown = $$("#thumbs input").length;
+  $("#select-all").checked = shown > 0 && ids.length === shown;
 }
 
 $("#thumbs").addEventListener("change", updateZipSelected);

@@ -8,7 +8,9 @@ from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
+import cv2
 import httpx
+import numpy as np
 import pytest
 
 from tests.api.vigil_livekit import Running, add_camera, wait_for, wait_for_pictures
@@ -127,3 +129,35 @@ def test_a_hidden_page_closes_its_streams_and_opens_them_again_when_shown(
         ".every(i => i.naturalWidth > 0 && !i.classList.contains('broken'))",
         timeout=10000,
     )
+
+
+def test_select_all_says_what_is_ticked_when_snapshots_arrive(
+    serve: Callable[..., Running], page: Any
+) -> None:
+    # "select all" stayed ticked while snapshots that came in after it came unticked:
+    # "Delete selected" then skipped what the box claimed to cover.
+    server = serve(demo_camera=True)
+    services = server.server.config.app.state.services
+    cam = httpx.get(f"{server.base}/api/cameras").json()[0]["id"]
+    jpeg = cv2.imencode(".jpg", np.full((48, 64, 3), 90, np.uint8))[1].tobytes()
+
+    def snapshot(ts: float) -> int:
+        path = services.snapshots.save(cam, ts, "frame", jpeg, None)
+        return services.database.add_snapshot(cam, None, ts, "frame", path, len(jpeg))
+
+    first = [snapshot(1_800_000_000.0 + i) for i in range(2)]
+    page.goto(server.base + "/")
+    boxes = page.locator("#thumbs input")
+    select_all = page.locator("#select-all")
+    wait_for(lambda: boxes.count() == 2, 10, "two thumbnails")
+    select_all.check()
+    later = snapshot(1_800_000_010.0)
+    page.evaluate("() => loadGallery()")
+    wait_for(lambda: boxes.count() == 3, 10, "the new thumbnail")
+    ticked = page.locator("#thumbs input:checked").evaluate_all("bs => bs.map(b => +b.value)")
+    assert sorted(ticked) == first  # What was shown when it was ticked, not the newcomer.
+    assert not select_all.is_checked()
+    select_all.check()
+    assert page.locator("#thumbs input:checked").count() == 3
+    page.locator(f'#thumbs input[value="{later}"]').uncheck()
+    assert not select_all.is_checked()

@@ -498,10 +498,11 @@ function updateCard(card, camera) {
   if (document.activeElement !== slider) {
     const automatic = camera.sensitivity === null || camera.sensitivity === undefined;
     auto.checked = automatic;
+    const threshold = camera.threshold ?? null;  // In force: only while detecting.
     // Automatic: the slider shows the threshold in force, so a nudge starts from there.
     if (!automatic) slider.value = camera.sensitivity;
-    else if (camera.threshold !== null && camera.threshold !== undefined) slider.value = Math.round(camera.threshold);
-    const inForce = camera.threshold === null || camera.threshold === undefined ? "" : ` (${Math.round(camera.threshold)})`;
+    else if (threshold !== null) slider.value = Math.round(threshold);
+    const inForce = threshold === null ? "" : ` (${Math.round(threshold)})`;
     $(".sens-value", card).textContent = automatic ? `auto${inForce}` : Math.round(camera.sensitivity);
   }
   if (document.activeElement !== $(".min-area", card)) $(".min-area", card).value = camera.min_area;
@@ -536,11 +537,14 @@ function startPictures(card, id) {
   card._loops = [];
   card._started = true;
   card._still = null;
-  if (card._mode !== "poll" && document.hidden) {
-    // A hidden page holds no stream (see "visibilitychange"): opened when it is shown.
-    img.removeAttribute("src");
-    img.classList.add("broken");
-  } else if (card._mode !== "poll") {
+  if (card._mode === "poll") {
+    const minMs = () => 1000 / Math.min(MAX_POLL_FPS, Math.max(1, state.cameras.get(id)?.fps || 0));
+    card._loops.push(pollLoop(card, img, `/api/cameras/${id}/frame.jpg`, minMs, () => {
+      (card._shown = card._shown || []).push(performance.now());
+    }));
+  } else if (document.hidden) {
+    blankPicture(img);  // A hidden page holds no stream (see "visibilitychange").
+  } else {
     img.onload = () => img.classList.remove("broken");
     img.onerror = () => {
       img.classList.add("broken");
@@ -548,11 +552,6 @@ function startPictures(card, id) {
       if (state.ws !== "down") card._timers.push(setTimeout(() => restartPictures(card), 2000));
     };
     img.src = `/api/cameras/${id}/stream.mjpg?r=${Date.now()}`;
-  } else {
-    const minMs = () => 1000 / Math.min(MAX_POLL_FPS, Math.max(1, state.cameras.get(id)?.fps || 0));
-    card._loops.push(pollLoop(card, img, `/api/cameras/${id}/frame.jpg`, minMs, () => {
-      (card._shown = card._shown || []).push(performance.now());
-    }));
   }
   card._loops.push(pollLoop(card, hist, `/api/cameras/${id}/histogram.jpg`, () => HISTOGRAM_MS));
 }
@@ -606,12 +605,14 @@ function stopPictures(card, keep = false) {
 function restartPictures(card, modeChanged = false) {
   if (!card._started) return;
   stopPictures(card, true);
-  if (modeChanged) {
-    const img = $(".live", card);
-    img.removeAttribute("src");
-    img.classList.add("broken");
-  }
+  if (modeChanged) blankPicture($(".live", card));
   startPictures(card, Number(card.dataset.id));
+}
+
+/* No picture, and no connection held for one, until the next src. */
+function blankPicture(img) {
+  img.removeAttribute("src");
+  img.classList.add("broken");
 }
 
 /* A tab in the background keeps its connections: a forgotten one with its streams open

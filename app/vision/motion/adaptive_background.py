@@ -336,7 +336,9 @@ class AdaptiveBackground(MotionMethod):
         settings[kernels.LEARNING] = learning
         settings[kernels.NEAR_MOTION_KNOWN] = self._previous_moving > 0
         # The ghost step: while the scene is learned, the still neighbours are sought
-        # past the deaf rim a start-up ghost has, and settle sooner.
+        # past the deaf rim a start-up ghost has, and settle sooner. So too from a scene
+        # estimated ahead: where it kept the wrong end, it has ghosts of its own (with
+        # reach 1 then, CDnet fall's F fell below that of no scan at all).
         settings[kernels.REACH] = LEARNING_REACH if learning else 1
         settings[kernels.SETTLE_FRAMES] = LEARNING_SETTLE_FRAMES if learning else self.settle_frames
         settings[kernels.RAW_PLANE] = raw_plane

@@ -73,17 +73,16 @@ def _path(value: str) -> Path:
 
 
 def _detect_width(value: str) -> int:
-    from app.vision.pipeline import MIN_DETECT_WIDTH
+    from app.vision.pipeline import check_detect_width
 
     try:
         width = int(value)
     except ValueError:
         raise argparse.ArgumentTypeError(f"not a whole number of pixels: {value!r}") from None
-    if width != 0 and width < MIN_DETECT_WIDTH:
-        raise argparse.ArgumentTypeError(
-            f"must be 0 (full size) or at least {MIN_DETECT_WIDTH} pixels, not {value}"
-        )
-    return width
+    try:
+        return check_detect_width(width)
+    except ValueError as exc:
+        raise argparse.ArgumentTypeError(str(exc)) from None
 
 
 def _port(value: str) -> int:
@@ -100,7 +99,7 @@ def _port(value: str) -> int:
 
 def build_parser() -> argparse.ArgumentParser:
     from app.vision.motion import DEFAULT_METHOD, METHODS
-    from app.vision.pipeline import MIN_DETECT_WIDTH
+    from app.vision.pipeline import MAX_DETECT_WIDTH, MIN_DETECT_WIDTH
     from app.vision.preprocess import DENOISE_METHODS, ENHANCE_METHODS
 
     parser = _Parser(prog="vigil", description="Vigil: tell me, and show me, when something moves.")
@@ -174,8 +173,8 @@ def build_parser() -> argparse.ArgumentParser:
         type=_detect_width,
         default=320,
         metavar="PX",
-        help=f"detect on frames at most this wide, 0 = full size, else at least "
-        f"{MIN_DETECT_WIDTH} (default 320)",
+        help=f"detect on frames at most this wide, 0 = full size, else {MIN_DETECT_WIDTH} to "
+        f"{MAX_DETECT_WIDTH} (default 320)",
     )
     analyze.add_argument(
         "--no-background-scan",

@@ -58,6 +58,22 @@ class PipelineConfig:
 MIN_DETECT_WIDTH = 32
 """Narrower than this, the detector's morphology and min area leave nothing to detect."""
 
+MAX_DETECT_WIDTH = 7680
+"""The widest detection that may be asked for: an 8K frame's (a frame is never enlarged,
+so anything wider is its full size, and says so with 0)."""
+
+
+def check_detect_width(width: int) -> int:
+    """``width`` if it is a detection width (``PipelineConfig.detect_width``), else
+    ValueError saying which are."""
+    if width != 0 and not MIN_DETECT_WIDTH <= width <= MAX_DETECT_WIDTH:
+        raise ValueError(
+            f"detect_width is 0 (full size) or {MIN_DETECT_WIDTH} to {MAX_DETECT_WIDTH} pixels,"
+            f" not {width}"
+        )
+    return width
+
+
 WHOLE_VIEW_SHARE = 0.8
 """Motion over more than this share of the view (outside its ignore zones), from a method
 that does not judge such changes itself (``judges_whole_view``), is the view changing at

@@ -94,7 +94,7 @@ def test_upload_limits(serve: Callable[..., Running], tmp_path: Path) -> None:
         ({"min_area": "1e26"}, "min_area"),
         ({"min-area": "50"}, "min-area"),
         ({"sensitivity": "10", "mask": "x"}, "mask"),
-        ({"detect_width": "7"}, "detect_width is 0 (full size) or 32 to 7680 pixels"),
+        ({"detect_width": "7"}, "detect_width is 0 (full size) or 32 to 7680 pixels, not 7"),
         ({"detect_width": "9000"}, "detect_width"),
     ):
         refused = httpx.post(

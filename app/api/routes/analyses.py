@@ -19,15 +19,12 @@ from app.api.routes.inputs import check_min_area, is_control
 from app.api.routes.streams import MJPEG_TYPE, NO_CACHE, mjpeg_part
 from app.api.services import Services, services
 from app.vision.motion import METHODS
-from app.vision.pipeline import MIN_DETECT_WIDTH
+from app.vision.pipeline import check_detect_width
 from app.workers.analysis_child import LIVE_FRAME
 
 router = APIRouter(prefix="/api/analyses", tags=["analyses"])
 
 FINISHED = ("done", "failed")
-MAX_DETECT_WIDTH = 7680
-"""The widest detection an upload may ask for: an 8K frame's."""
-
 UPLOAD_FIELDS = frozenset({"file", "method", "sensitivity", "min_area", "detect_width"})
 """The parts of an upload; any other is refused."""
 
@@ -77,15 +74,10 @@ async def upload(
         raise HTTPException(422, "min_area must be a number of pixels, 0 or more")
     try:
         check_min_area(min_area)
+        if detect_width is not None:
+            check_detect_width(detect_width)
     except ValueError as exc:
         raise HTTPException(422, str(exc)) from None
-    if detect_width is not None and not (
-        detect_width == 0 or MIN_DETECT_WIDTH <= detect_width <= MAX_DETECT_WIDTH
-    ):
-        raise HTTPException(
-            422,
-            f"detect_width is 0 (full size) or {MIN_DETECT_WIDTH} to {MAX_DETECT_WIDTH} pixels",
-        )
     unknown = sorted(set((await request.form()).keys()) - UPLOAD_FIELDS)
     if unknown:  # A misspelt setting (min-area) is an error, as in the camera routes.
         raise HTTPException(

@@ -41,6 +41,7 @@ def as_polygons(value: Sequence[Sequence[Sequence[float]]]) -> tuple[Polygon, ..
 class IgnoreZones:
     polygons: tuple[Polygon, ...] = ()
     _keep: dict[tuple[int, int], Mask] = field(default_factory=dict, compare=False, repr=False)
+    _watched: dict[tuple[int, int], int] = field(default_factory=dict, compare=False, repr=False)
 
     def __call__(self, mask: Mask) -> Mask:
         """The motion mask with everything inside the zones cleared."""
@@ -52,7 +53,10 @@ class IgnoreZones:
         """Pixels of a ``width`` x ``height`` mask outside the zones."""
         if not self.polygons:
             return width * height
-        return cv2.countNonZero(self._keep_mask(width, height))
+        size = (width, height)
+        if size not in self._watched:  # Counted once per size: it is asked every frame.
+            self._watched[size] = cv2.countNonZero(self._keep_mask(width, height))
+        return self._watched[size]
 
     def _keep_mask(self, width: int, height: int) -> Mask:
         keep = self._keep.get((width, height))

@@ -438,11 +438,13 @@ def _gains(
     count = 0
     for row in range(sampled):
         y = row * step
-        seen, model, used = _row_sums(gray, background, previous_mask, y, step, 1.0, limit, 0.0)
+        within, near = _row_sums(
+            gray, background, previous_mask, y, step, 1.0, limit, ROW_GAIN_SPREAD
+        )
+        seen, model, used = within
         frame_sum += seen
         background_sum += model
         count += used
-        near = _row_sums(gray, background, previous_mask, y, step, 1.0, limit, ROW_GAIN_SPREAD)
         _add_row(sums, row, near)
     gain = 1.0
     if count > 0 and background_sum >= count and frame_sum >= count:
@@ -457,10 +459,8 @@ def _gains(
     # last mask missed does not move unless it covers half of it (the mean did).
     _median_ratios(gray, background, previous_mask, step, limit, gain, ratios)
     for row in range(sampled):  # Again, within ``limit`` of the background so lit.
-        lit = ratios[row]
-        _add_row(
-            sums, row, _row_sums(gray, background, previous_mask, row * step, step, lit, limit, 0.0)
-        )
+        within, _ = _row_sums(gray, background, previous_mask, row * step, step, ratios[row], limit)
+        _add_row(sums, row, within)
     _windowed_ratios(sums, per_row, gain, ratios)
     for y in range(rows):
         out[y] = np.float32(ratios[min((y + step // 2) // step, sampled - 1)])
@@ -476,22 +476,31 @@ def _row_sums(
     step: int,
     lit: float,
     limit: float,
-    spread: float,
-) -> tuple[float, float, int]:
+    spread: float = 0.0,
+) -> tuple[tuple[float, float, int], tuple[float, float, int]]:
     """Frame and background sums, and how many pixels, of row ``y``'s every ``step``-th
-    pixel that was still and is within ``limit`` plus ``spread`` (a share of its
-    background) of its background lit by ``lit``."""
+    pixel that was still and is within ``limit`` of its background lit by ``lit``; and
+    the same of those within ``limit`` plus ``spread`` (a share of its background)."""
     frame_sum = 0.0
     background_sum = 0.0
     count = 0
+    near_frame_sum = 0.0
+    near_background_sum = 0.0
+    near_count = 0
     for x in range(0, gray.shape[1], step):  # Selects, not branches: a toss-up.
         value = float(gray[y, x])
         model = float(background[y, x])
-        used = (previous_mask[y, x] == 0) & (abs(value - model * lit) < limit + spread * model)
+        still = previous_mask[y, x] == 0
+        off = abs(value - model * lit)
+        used = still & (off < limit)
         frame_sum += value if used else 0.0
         background_sum += model if used else 0.0
         count += used
-    return frame_sum, background_sum, count
+        near = still & (off < limit + spread * model)
+        near_frame_sum += value if near else 0.0
+        near_background_sum += model if near else 0.0
+        near_count += near
+    return (frame_sum, background_sum, count), (near_frame_sum, near_background_sum, near_count)
 
 
 @compiled_helper

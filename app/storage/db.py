@@ -269,8 +269,22 @@ class Database:
         kind: str | None = None,
         ids: Sequence[int] | None = None,
         limit: int = 500,
+        *,
+        since_id: int | None = None,
+        until_id: int | None = None,
     ) -> list[dict[str, Any]]:
+        """Newest first (by time, then id). ``since_id`` and ``until_id`` settle ties at the
+        window's ends, where snapshots share a time: of those taken at exactly ``since``,
+        only ids from ``since_id`` on; at exactly ``until``, only ids up to ``until_id``.
+        So a snapshot's (ts, id) as either end is a cursor that skips none and repeats none.
+        Each counts only with its end given."""
         clauses, params = _filters(camera_id, since, until, "ts >= ?", "ts <= ?")
+        if since is not None and since_id is not None:
+            clauses.append("(ts > ? OR id >= ?)")
+            params.extend((since, since_id))
+        if until is not None and until_id is not None:
+            clauses.append("(ts < ? OR id <= ?)")
+            params.extend((until, until_id))
         if kind:
             clauses.append("kind = ?")
             params.append(kind)

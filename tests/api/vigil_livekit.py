@@ -142,6 +142,16 @@ def add_camera(
     return camera_id
 
 
+def add_snapshot(
+    server: Running, camera_id: int, ts: float, kind: str = "frame", event_id: int | None = None
+) -> int:
+    """A snapshot stored as a camera stores one (a small grey JPEG, file and row); its id."""
+    services = server.server.config.app.state.services
+    jpeg = cv2.imencode(".jpg", np.full((48, 64, 3), 90, np.uint8))[1].tobytes()
+    path = services.snapshots.save(camera_id, ts, kind, jpeg, event_id)
+    return int(services.database.add_snapshot(camera_id, event_id, ts, kind, path, len(jpeg)))
+
+
 @contextmanager
 def serve_process(
     data_dir: Path, own_group: bool = False, **env: str

@@ -48,6 +48,21 @@ def _ids(given: list[str] | None) -> list[int] | None:
     return ids
 
 
+EndId = Annotated[int | None, Query(ge=0, le=MAX_ID)]
+"""``since_id`` and ``until_id``: which of the snapshots taken at exactly ``since`` (from
+this id on) or ``until`` (up to this id) are in; see ``Database.snapshots``."""
+
+
+def _check_ends(
+    since: float | None, since_id: int | None, until: float | None, until_id: int | None
+) -> None:
+    for name, end, given in (("since", since, since_id), ("until", until, until_id)):
+        if given is not None and end is None:
+            raise HTTPException(
+                422, f"{name}_id needs {name}: it picks among the snapshots taken at exactly {name}"
+            )
+
+
 @router.get("/snapshots")
 def list_snapshots(
     request: Request,
@@ -56,9 +71,17 @@ def list_snapshots(
     until: TimeFilter = None,
     kind: str | None = None,
     limit: int = Query(500, ge=1, le=10000),
+    since_id: EndId = None,
+    until_id: EndId = None,
 ) -> list[dict[str, Any]]:
-    """Snapshots, newest first; ``kind`` is ``frame`` or ``difference``; times are Unix seconds."""
-    rows = services(request).database.snapshots(camera_id, since, until, kind, limit=limit)
+    """Snapshots, newest first (by time, then id); ``kind`` is ``frame`` or ``difference``;
+    times are Unix seconds. ``until`` with ``until_id`` (``since`` with ``since_id``) is a
+    cursor: the next page after the last snapshot listed is ``until`` its ``ts`` and
+    ``until_id`` its ``id`` less one, none skipped where snapshots share a time."""
+    _check_ends(since, since_id, until, until_id)
+    rows = services(request).database.snapshots(
+        camera_id, since, until, kind, limit=limit, since_id=since_id, until_id=until_id
+    )
     return [_view(r) for r in rows]
 
 
@@ -71,10 +94,17 @@ def snapshots_zip(
     kind: str | None = None,
     ids: Annotated[list[str] | None, Query()] = None,
     limit: int = Query(10000, ge=1, le=100000),
+    since_id: EndId = None,
+    until_id: EndId = None,
 ) -> StreamingResponse:
-    """The selected snapshots as one zip, streamed as it is made."""
+    """The selected snapshots as one zip, streamed as it is made; the filters are the
+    listing's (a page range: ``since``/``since_id`` its oldest, ``until``/``until_id`` its
+    newest)."""
     svc = services(request)
-    rows = svc.database.snapshots(camera_id, since, until, kind, _ids(ids), limit)
+    _check_ends(since, since_id, until, until_id)
+    rows = svc.database.snapshots(
+        camera_id, since, until, kind, _ids(ids), limit, since_id=since_id, until_id=until_id
+    )
     stamp = time.strftime("%Y%m%d-%H%M%S", time.gmtime())
     return StreamingResponse(
         _zip_entries(svc, rows),

@@ -19,6 +19,8 @@ const STALL_MS = 10000;  // A stream of a live camera whose picture stays the sa
 const TOAST_MAX = 3;     // Toasts shown at once; the rest wait behind "+N more".
 const ALARM_LIST_MAX = 100;
 const HISTORY_EVENTS = 50;  // Events listed on page load, from GET /api/events.
+const GALLERY_PAGE = 200;   // Snapshots the gallery shows at first, and adds on "Show older".
+const GALLERY_MAX = 10000;  // The most one listing of snapshots gives.
 
 const state = {
   cameras: new Map(),      // id -> camera (from the API, updated by /ws status)
@@ -32,10 +34,15 @@ const state = {
   knownCameraIds: new Set(),  // cameras that have events or snapshots, deleted ones too
   alarmItems: new Map(),   // event key -> alarm list entry
   analyses: new Map(),     // id -> element
+  uploads: new Set(),      // the uploads under way (XMLHttpRequest)
   newestEventTs: 0,        // the latest event start (server clock) the page has heard of
   statuses: new Map(),     // id -> {at, fields}: a camera's latest /ws status, when it came
   changedAt: new Map(),    // id -> when this page last asked to change the camera
   listedAt: 0,             // when the camera listing last shown was asked for
+  // The snapshot gallery: the filters it shows, what it shows (newest first), whether
+  // older ones match too, the oldest it has shown (where older ones start), and a count
+  // of the listings asked for (only the answer to the last one counts).
+  gallery: { filters: null, snapshots: [], more: false, oldest: null, asked: 0 },
 };
 
 /* ---------- HTTP ---------- */
@@ -82,6 +89,12 @@ function fmtTime(ts) {
 function fmtDate(ts) {
   return new Date(ts * 1000).toLocaleString();
 }
+
+/* The sticky header's height, for the sections' scroll-margin-top: a nav link brings its
+   section's heading just below the header, not under it (it wraps on narrow screens). */
+new ResizeObserver(() => {
+  document.documentElement.style.setProperty("--top-height", `${$(".top").offsetHeight}px`);
+}).observe($(".top"));
 
 /* ---------- Sound and toasts ---------- */
 
@@ -172,7 +185,8 @@ $("#mute").addEventListener("click", () => {
 
 /* Toasts: at most TOAST_MAX shown, newest first; the rest wait behind "+N more" (with
    "dismiss all"). A toast with a key (an alarm: its camera and event) is updated in
-   place by the next one with the same key rather than stacked again. */
+   place by the next one with the same key rather than stacked again. A click on a toast,
+   its close button (Tab reaches it) or Escape (the newest) closes it. */
 function toast(html, kind = "alarm", key = null) {
   const box = $("#toasts");
   key = key || `${kind}:${html}`;
@@ -188,7 +202,8 @@ function toast(html, kind = "alarm", key = null) {
     el.addEventListener("click", () => removeToast(el));
     el._repeats = 1;
   }
-  el.innerHTML = html + (el._repeats > 1 && kind !== "alarm" ? ` <span class="repeats">×${el._repeats}</span>` : "");
+  el.innerHTML = html + (el._repeats > 1 && kind !== "alarm" ? ` <span class="repeats">×${el._repeats}</span>` : "")
+    + '<button type="button" class="toast-close" aria-label="close this message" title="close (Esc closes the newest)">✕</button>';
   box.prepend(el);
   el._timer = setTimeout(() => removeToast(el), kind === "error" ? 12000 : 8000);
   layoutToasts();
@@ -200,9 +215,12 @@ function findToast(key) {
 }
 
 function removeToast(el) {
+  const hadFocus = el.contains(document.activeElement);
   clearTimeout(el._timer);
   el.remove();
   layoutToasts();
+  // Closed from the keyboard: on to the next toast's close button, if any.
+  if (hadFocus) $("#toasts > .toast:not([hidden]) .toast-close")?.focus();
 }
 
 function layoutToasts() {
@@ -216,6 +234,13 @@ function layoutToasts() {
 
 $("#toasts-dismiss").addEventListener("click", () => {
   for (const el of $$("#toasts > .toast")) removeToast(el);
+});
+
+document.addEventListener("keydown", (event) => {
+  // Not an Escape that something else took (a form on a card closes with it).
+  if (event.key !== "Escape" || event.defaultPrevented) return;
+  const newest = $("#toasts > .toast");
+  if (newest) removeToast(newest);
 });
 
 function escapeHtml(text) {
@@ -342,6 +367,7 @@ function makeCard(id) {
     }
   });
   setUpZones(card, id);
+  setUpEditing(card, id);
   $(".delete", card).addEventListener("click", async () => {
     if (!confirm(`Remove camera “${cameraName(id)}”? Its snapshots stay.`)) return;
     try {
@@ -352,6 +378,61 @@ function makeCard(id) {
     }
   });
   return card;
+}
+
+/* ---------- Name and source ---------- */
+// "Edit" opens a form on the card with both, as the camera has them (a password in the
+// source shown masked, as the API shows it and takes it back). Enter saves, Escape or
+// Cancel leaves it; a refusal is said on the form, which stays open to put it right.
+
+function setUpEditing(card, id) {
+  const form = $(".edit-form", card);
+  const error = $(".form-error", form);
+  const open = $(".edit", card);
+  const close = () => {
+    form.hidden = true;
+    error.textContent = "";
+    open.setAttribute("aria-expanded", "false");
+    open.focus();
+  };
+  open.addEventListener("click", () => {
+    const camera = state.cameras.get(id) || {};
+    form.name.value = camera.name ?? "";
+    form.source.value = camera.source ?? "";
+    error.textContent = "";
+    form.hidden = false;
+    open.setAttribute("aria-expanded", "true");
+    form.name.focus();
+    form.name.select();
+  });
+  $(".edit-cancel", form).addEventListener("click", close);
+  form.addEventListener("keydown", (event) => {
+    if (event.key !== "Escape") return;
+    event.preventDefault();  // This form's Escape: it closes no toast.
+    close();
+  });
+  form.addEventListener("submit", async (event) => {
+    event.preventDefault();
+    const camera = state.cameras.get(id) || {};
+    const changes = {};
+    for (const key of ["name", "source"]) {
+      const value = form[key].value.trim();
+      if (value !== camera[key]) changes[key] = value;
+    }
+    if (!Object.keys(changes).length) {
+      close();
+      return;
+    }
+    error.textContent = "";
+    const save = $("button[type=submit]", form);
+    save.disabled = true;
+    const taken = await patchCamera(id, changes, (message) => { error.textContent = message; });
+    save.disabled = false;
+    if (!taken) return;
+    close();
+    // The server reconnects the camera to its new source: pictures of the old one end.
+    if ("source" in changes) restartPictures(card);
+  });
 }
 
 /* ---------- Ignore zones ---------- */
@@ -449,7 +530,9 @@ function setUpZones(card, id) {
   });
 }
 
-async function patchCamera(id, changes) {
+/* report: where a refusal is said in words (the form that asked), instead of a toast.
+   Whether the server took the change. */
+async function patchCamera(id, changes, report = null) {
   // Taken at once: a status message that comes before the answer redraws the card from
   // the camera as known here, and would otherwise undo the change on the page (untick
   // "auto" just ticked) until the answer came.
@@ -457,21 +540,26 @@ async function patchCamera(id, changes) {
   state.cameras.set(id, { ...before, ...changes });
   const askedAt = performance.now();
   state.changedAt.set(id, askedAt);
+  let taken = false;
   try {
     const updated = await api("PATCH", `/api/cameras/${id}`, changes);
     state.cameras.set(id, answered(id, updated, askedAt, Object.keys(changes)));
+    taken = true;
   } catch (error) {
     const undone = Object.fromEntries(Object.keys(changes).map((key) => [key, before && before[key]]));
     state.cameras.set(id, { ...state.cameras.get(id), ...undone });
-    toast(`Cannot change ${escapeHtml(cameraName(id))}: ${escapeHtml(error.message)}`, "error");
+    if (report) report(error.message);
+    else toast(`Cannot change ${escapeHtml(cameraName(id))}: ${escapeHtml(error.message)}`, "error");
   }
   updateCard(state.cards.get(id), state.cameras.get(id));
+  return taken;
 }
 
 function updateCard(card, camera) {
   if (!card || !camera) return;
   $(".cam-name", card).textContent = camera.name;
-  $(".cam-name", card).title = camera.source;
+  $(".cam-source", card).textContent = camera.source;
+  $(".cam-source", card).title = camera.source;
   const badge = $(".state", card);
   const unreachable = state.ws === "down";
   // While /ws is down nothing is known of the camera: its last state would be a guess.
@@ -786,6 +874,21 @@ function setAlarmPicture(item, snapshot, difference) {
   }
 }
 
+function setNoPicture(item, text, title = "") {
+  $(".shot", item).innerHTML = `<span class="muted" title="${escapeHtml(title)}">${escapeHtml(text)}</span>`;
+}
+
+/* Snapshots this page deleted: the alarms that showed them say so. */
+function noteDeletedSnapshots(ids) {
+  const urls = new Set(ids.map((id) => `/api/snapshots/${id}.jpg`));
+  for (const item of state.alarmItems.values()) {
+    const shot = $(".shot a", item);
+    if (shot && urls.has(shot.getAttribute("href"))) setNoPicture(item, "snapshot deleted");
+    const difference = $(".links a", item);
+    if (difference && urls.has(difference.getAttribute("href"))) difference.remove();
+  }
+}
+
 function setAlarmEnded(item, durationS, maxArea) {
   const ongoing = $(".ongoing", item);
   ongoing.textContent = `ended after ${durationS.toFixed(1)} s, peak area ${Math.round(maxArea)} px`;
@@ -883,6 +986,8 @@ async function loadRecentAlarms() {
       + `${event.boxes && event.boxes.length ? `: ${objectsText(event)}` : ""}`;
     const picture = pictures.get(event.id) || {};
     setAlarmPicture(item, picture.frame, picture.difference);
+    // None listed: none was saved (a full disk), or it has been deleted since.
+    if (!picture.frame) setNoPicture(item, "no snapshot", "none was saved, or it has been deleted since");
     if (event.ended_at) setAlarmEnded(item, event.ended_at - event.started_at, event.max_area);
     list.append(item);
   }
@@ -984,6 +1089,7 @@ function analysisPanel(id, filename) {
   panel.className = "analysis";
   panel.dataset.id = id;
   panel.innerHTML = `<header><b class="file"></b> <span class="badge status">queued</span>
+    <button type="button" class="cancel" hidden>Cancel upload</button>
     <button type="button" class="dismiss" title="remove this panel (the analysis stays on the server)"
       aria-label="dismiss" hidden>✕</button></header>
     <label>Upload <progress class="upload-bar" max="1" value="1"></progress></label>
@@ -1023,6 +1129,22 @@ $("#upload").addEventListener("submit", (event) => {
   const xhr = new XMLHttpRequest();
   xhr.open("POST", "/api/analyses");
   xhr.upload.onprogress = (e) => { if (e.lengthComputable) bar.value = e.loaded / e.total; };
+  let sent = false;  // The whole file went out: the server may have taken it.
+  xhr.upload.onload = () => { sent = true; };
+  const cancel = $(".cancel", pending);
+  cancel.hidden = false;
+  cancel.onclick = () => xhr.abort();
+  state.uploads.add(xhr);
+  xhr.onloadend = () => {
+    state.uploads.delete(xhr);
+    cancel.hidden = true;
+  };
+  xhr.onabort = () => {
+    setStatus(pending, null, "cancelled");
+    $(".error", pending).textContent = sent
+      ? "Upload cancelled, after the whole file was sent: if the server took it, its analysis shows here."
+      : "Upload cancelled: the video was not sent.";
+  };
   xhr.onload = () => {
     if (xhr.status === 401) {
       toLogin();
@@ -1049,6 +1171,14 @@ $("#upload").addEventListener("submit", (event) => {
   xhr.send(data);
 });
 
+/* Leaving the page (reload, close, another address) ends an upload under way: the
+   browser asks first. */
+window.addEventListener("beforeunload", (event) => {
+  if (!state.uploads.size) return;
+  event.preventDefault();
+  event.returnValue = "";  // What older browsers ask for.
+});
+
 function onProgress(message) {
   const panel = state.analyses.get(message.analysis_id);
   if (!panel) {
@@ -1064,7 +1194,7 @@ function setStatus(panel, id, status) {
   const badge = $(".status", panel);
   badge.textContent = status;
   badge.className = `badge status badge-${status}`;
-  $(".dismiss", panel).hidden = !["done", "failed"].includes(status);
+  $(".dismiss", panel).hidden = !["done", "failed", "cancelled"].includes(status);
   const view = $(".live-view", panel);
   if (status === "running" && !$("img", view)) {
     // A live stream holds a connection: one camera fewer streams meanwhile.
@@ -1177,24 +1307,93 @@ function galleryQuery() {
   return params;
 }
 
-async function loadGallery() {
-  const params = galleryQuery();
-  $("#zip-all").href = `/api/snapshots.zip?${params}`;
-  params.set("limit", "200");
+/* The gallery shows a run of the listing (newest first, by time then id): from the newest
+   snapshot its filters match down to the oldest shown; "Show older" adds the next page.
+   A snapshot is a cursor into the listing, its time and id (the API's until/until_id and
+   since/since_id), so snapshots that share a time at a page's edge are neither skipped
+   nor shown twice; and "Download all shown" asks for the run shown, ends included. */
+function endAt(params, end, snap, id = snap.id) {
+  params.set(end, String(snap.ts));
+  params.set(`${end}_id`, String(id));
+}
+
+/* Asks for a listing; its snapshots, or null where a newer one was asked for meanwhile
+   (or it failed: said in a toast). */
+async function listGallery(params) {
+  const asked = ++state.gallery.asked;
   let snapshots;
   try {
     snapshots = await api("GET", `/api/snapshots?${params}`);
   } catch (error) {
     toast(`Cannot load snapshots: ${escapeHtml(error.message)}`, "error");
-    return;
+    return null;
   }
+  return asked === state.gallery.asked ? snapshots : null;
+}
+
+/* fresh: from the newest, with the filters of the form; otherwise (a new snapshot, a
+   deletion, the server back) the same filters and as far down as shown, with what came
+   in since on top. */
+async function loadGallery(fresh = false) {
+  const gallery = state.gallery;
+  if (fresh || !gallery.filters) gallery.filters = galleryQuery();
+  const params = new URLSearchParams(gallery.filters);
+  const shown = fresh ? [] : gallery.snapshots;
+  // Older ones are not shown: stay down to the oldest shown (deleted since, it still counts).
+  const down = !fresh && gallery.more && gallery.oldest !== null;
+  if (down) endAt(params, "since", gallery.oldest);
+  const limit = Math.min(GALLERY_MAX, shown.length + GALLERY_PAGE);
+  params.set("limit", String(limit + 1));  // One more tells whether there are more.
+  const snapshots = await listGallery(params);
+  if (!snapshots) return;
+  const cut = snapshots.length > limit;  // So many came in that the oldest shown fall off.
+  gallery.snapshots = snapshots.slice(0, limit);
+  if (cut || !down) gallery.oldest = gallery.snapshots.at(-1) || null;
+  gallery.more = down || cut;
+  renderGallery();
+}
+
+async function showOlder() {
+  const gallery = state.gallery;
+  if (gallery.oldest === null) return;
+  const params = new URLSearchParams(gallery.filters);
+  endAt(params, "until", gallery.oldest, gallery.oldest.id - 1);
+  params.set("limit", String(GALLERY_PAGE + 1));
+  const button = $("#gallery-more");
+  button.disabled = true;
+  const older = await listGallery(params);
+  button.disabled = false;
+  if (!older) return;
+  const page = older.slice(0, GALLERY_PAGE);
+  gallery.snapshots = gallery.snapshots.concat(page);
+  if (page.length) gallery.oldest = page.at(-1);
+  gallery.more = older.length > GALLERY_PAGE;
+  renderGallery();
+}
+
+function renderGallery() {
+  const { snapshots, more, filters } = state.gallery;
   for (const snap of snapshots) noteCamera(snap.camera_id);
   const selected = new Set($$("#thumbs input:checked").map((i) => i.value));
   $("#thumbs").innerHTML = snapshots.map((s) => `<figure class="thumb">
       <label><input type="checkbox" value="${s.id}" ${selected.has(String(s.id)) ? "checked" : ""}>
       <img loading="lazy" src="${s.url}" alt="snapshot ${s.id}"></label>
       <figcaption>${escapeHtml(cameraName(s.camera_id))} · ${fmtDate(s.ts)} · ${s.kind}</figcaption>
-    </figure>`).join("") || '<p class="muted">No snapshots yet: Activate a camera.</p>';
+    </figure>`).join("") || `<p class="muted">${more ? "None left here: older ones are below."
+      : "No snapshots yet: Activate a camera."}</p>`;
+  $("#gallery-more").hidden = !more;
+  $("#gallery-count").textContent = !snapshots.length ? ""
+    : `${plural(snapshots.length, "snapshot")} shown, newest first${more ? ", older ones below" : ""}`;
+  const zip = $("#zip-all");
+  const params = new URLSearchParams(filters);
+  if (snapshots.length) {
+    endAt(params, "until", snapshots[0]);
+    endAt(params, "since", snapshots[snapshots.length - 1]);
+    params.set("limit", String(snapshots.length));
+  }
+  zip.href = snapshots.length ? `/api/snapshots.zip?${params}` : "#";
+  zip.classList.toggle("disabled", !snapshots.length);
+  zip.textContent = `Download all ${snapshots.length} shown (.zip)`;
   updateZipSelected();
 }
 
@@ -1225,18 +1424,20 @@ $("#select-all").addEventListener("change", (e) => {
   updateZipSelected();
 });
 $("#zip-selected").addEventListener("click", (e) => { if (!selectedIds().length) e.preventDefault(); });
+$("#zip-all").addEventListener("click", (e) => { if (!state.gallery.snapshots.length) e.preventDefault(); });
+$("#gallery-more").addEventListener("click", showOlder);
 $("#delete-selected").addEventListener("click", async () => {
   const ids = selectedIds();
   if (!ids.length || !confirm(`Delete ${ids.length} snapshot(s)?`)) return;
   try {
-    await api("POST", "/api/snapshots/delete", { ids });
+    noteDeletedSnapshots((await api("POST", "/api/snapshots/delete", { ids })).deleted);
   } catch (error) {
     toast(escapeHtml(error.message), "error");
   }
   $("#select-all").checked = false;
   loadGallery();
 });
-$("#gallery-filter").addEventListener("submit", (e) => { e.preventDefault(); loadGallery(); });
+$("#gallery-filter").addEventListener("submit", (e) => { e.preventDefault(); loadGallery(true); });
 
 /* ---------- Start ---------- */
 

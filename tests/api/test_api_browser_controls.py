@@ -8,35 +8,22 @@ from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
-import cv2
 import httpx
-import numpy as np
 import pytest
 
-from tests.api.vigil_livekit import Running, add_camera, wait_for, wait_for_pictures
+from tests.api.vigil_livekit import (
+    Running,
+    add_camera,
+    add_snapshot,
+    set_hidden,
+    wait_for,
+    wait_for_pictures,
+)
 
 pytestmark = pytest.mark.browser
 
 STREAMS_OPEN = "() => document.querySelectorAll('img[src*=\".mjpg\"]').length"
 """How many pictures on the page hold an MJPEG stream."""
-
-
-def set_hidden(page: Any, hidden: bool) -> None:
-    """The page goes to the background (or comes back), as a tab switch tells it."""
-    page.evaluate(
-        """(hidden) => {
-          if (hidden) {
-            Object.defineProperty(document, 'hidden', { configurable: true, get: () => true });
-            Object.defineProperty(document, 'visibilityState',
-              { configurable: true, get: () => 'hidden' });
-          } else {
-            delete document.hidden;
-            delete document.visibilityState;
-          }
-          document.dispatchEvent(new Event('visibilitychange'));
-        }""",
-        hidden,
-    )
 
 
 def test_the_slider_in_auto_mode_shows_the_threshold_in_force_and_a_nudge_starts_there(
@@ -137,21 +124,14 @@ def test_select_all_says_what_is_ticked_when_snapshots_arrive(
     # "select all" stayed ticked while snapshots that came in after it came unticked:
     # "Delete selected" then skipped what the box claimed to cover.
     server = serve(demo_camera=True)
-    services = server.server.config.app.state.services
     cam = httpx.get(f"{server.base}/api/cameras").json()[0]["id"]
-    jpeg = cv2.imencode(".jpg", np.full((48, 64, 3), 90, np.uint8))[1].tobytes()
-
-    def snapshot(ts: float) -> int:
-        path = services.snapshots.save(cam, ts, "frame", jpeg, None)
-        return services.database.add_snapshot(cam, None, ts, "frame", path, len(jpeg))
-
-    first = [snapshot(1_800_000_000.0 + i) for i in range(2)]
+    first = [add_snapshot(server, cam, 1_800_000_000.0 + i) for i in range(2)]
     page.goto(server.base + "/")
     boxes = page.locator("#thumbs input")
     select_all = page.locator("#select-all")
     wait_for(lambda: boxes.count() == 2, 10, "two thumbnails")
     select_all.check()
-    later = snapshot(1_800_000_010.0)
+    later = add_snapshot(server, cam, 1_800_000_010.0)
     page.evaluate("() => loadGallery()")
     wait_for(lambda: boxes.count() == 3, 10, "the new thumbnail")
     ticked = page.locator("#thumbs input:checked").evaluate_all("bs => bs.map(b => +b.value)")

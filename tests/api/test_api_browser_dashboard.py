@@ -25,6 +25,7 @@ from tests.api.vigil_livekit import (
     hold_answers,
     live_settings,
     running_server,
+    set_hidden,
     wait_for,
     wait_for_pictures,
 )
@@ -397,25 +398,27 @@ def test_a_stream_that_becomes_polled_while_the_page_is_hidden_closes_its_connec
     assert stream in (last.get_attribute("src") or "")
     hub = server.server.config.app.state.services.cameras.get(ids[3]).hub
     assert hub.watching["picture"] >= 1
-    # The tab goes to the background, and meanwhile an analysis is watched live: its
-    # stream takes a connection, so the last camera's picture becomes polled. No polled
-    # frame is asked for while the page is hidden, and its stream must not stay open.
-    page.evaluate(
-        "() => { Object.defineProperty(document, 'hidden', { configurable: true,"
-        " get: () => true }); setStatus(analysisPanel('a1', 'clip.avi'), 'a1', 'running'); }"
-    )
-    # The server sees the stream's viewer go (it checks every second).
+    # The tab goes to the background: its streams close (the server sees the viewer go:
+    # it checks every second). Meanwhile an analysis is watched live: its stream takes a
+    # connection, so the last camera's picture becomes polled, and asks for no frame
+    # while the page is hidden.
+    set_hidden(page, True)
     wait_for(lambda: hub.watching["picture"] == 0, 5, "the stream to close")
-    assert last.get_attribute("src") is None
-    assert page.locator(".card:not(.polled) img.live[src*='stream.mjpg']").count() == 3
-    # Back in view: the last camera shows polled frames.
-    page.evaluate("() => { delete document.hidden; }")
+    asked: list[str] = []
+    page.on("request", lambda r: asked.append(r.url) if f"/cameras/{ids[3]}/" in r.url else None)
+    page.evaluate("() => setStatus(analysisPanel('a1', 'clip.avi'), 'a1', 'running')")
+    page.wait_for_timeout(1500)
+    assert asked == [] and last.get_attribute("src") is None
+    # Back in view: the other three stream again, and the last camera shows polled frames.
+    set_hidden(page, False)
     page.wait_for_function(
         f"() => {{ const i = document.querySelector('.card[data-id=\"{ids[3]}\"] img.live');"
         " return i.src.includes('/frame.jpg') && i.naturalWidth > 0"
         " && !i.classList.contains('broken'); }",
         timeout=10000,
     )
+    assert page.locator(".card:not(.polled) img.live[src*='stream.mjpg']").count() == 3
+    assert not any("stream.mjpg" in url for url in asked)
 
 
 def test_a_camera_that_goes_away_asks_for_no_pictures_meanwhile(

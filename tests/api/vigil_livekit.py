@@ -426,3 +426,21 @@ def read_mjpeg_frames(response_iter: Iterator[bytes], count: int) -> list[np.nda
             if len(frames) >= count:
                 return frames
     raise AssertionError(f"stream ended after {len(frames)} frames")
+
+
+def set_hidden(page: Any, hidden: bool) -> None:
+    """The page goes to the background (or comes back), as a tab switch tells it."""
+    page.evaluate(
+        """(hidden) => {
+          if (hidden) {
+            Object.defineProperty(document, 'hidden', { configurable: true, get: () => true });
+            Object.defineProperty(document, 'visibilityState',
+              { configurable: true, get: () => 'hidden' });
+          } else {
+            delete document.hidden;
+            delete document.visibilityState;
+          }
+          document.dispatchEvent(new Event('visibilitychange'));
+        }""",
+        hidden,
+    )

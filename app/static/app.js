@@ -19,8 +19,9 @@ const STALL_MS = 10000;  // A stream of a live camera whose picture stays the sa
 const TOAST_MAX = 3;     // Toasts shown at once; the rest wait behind "+N more".
 const ALARM_LIST_MAX = 100;
 const HISTORY_EVENTS = 50;  // Events listed on page load, from GET /api/events.
+const HISTORY_SNAPSHOTS = 2000;  // The most snapshots asked for to show those events'.
 const GALLERY_PAGE = 200;   // Snapshots the gallery shows at first, and adds on "Show older".
-const GALLERY_MAX = 10000;  // The most one listing of snapshots gives.
+const GALLERY_MAX = 9999;   // The most shown: one more than this is the most one listing gives.
 
 const state = {
   cameras: new Map(),      // id -> camera (from the API, updated by /ws status)
@@ -40,9 +41,12 @@ const state = {
   changedAt: new Map(),    // id -> when this page last asked to change the camera
   listedAt: 0,             // when the camera listing last shown was asked for
   // The snapshot gallery: the filters it shows, what it shows (newest first), whether
-  // older ones match too, the oldest it has shown (where older ones start), and a count
-  // of the listings asked for (only the answer to the last one counts).
-  gallery: { filters: null, snapshots: [], more: false, oldest: null, asked: 0 },
+  // older ones match too, the oldest it has shown (where older ones start); its listings,
+  // one after another (each builds on what the last showed), and whether a refresh waits.
+  gallery: {
+    filters: null, snapshots: [], more: false, oldest: null,
+    queue: Promise.resolve(), refreshWaiting: false,
+  },
 };
 
 /* ---------- HTTP ---------- */
@@ -202,8 +206,10 @@ function toast(html, kind = "alarm", key = null) {
     el.addEventListener("click", () => removeToast(el));
     el._repeats = 1;
   }
+  const focused = el.contains(document.activeElement);  // Its close button, kept focused.
   el.innerHTML = html + (el._repeats > 1 && kind !== "alarm" ? ` <span class="repeats">×${el._repeats}</span>` : "")
     + '<button type="button" class="toast-close" aria-label="close this message" title="close (Esc closes the newest)">✕</button>';
+  if (focused) $(".toast-close", el).focus();
   box.prepend(el);
   el._timer = setTimeout(() => removeToast(el), kind === "error" ? 12000 : 8000);
   layoutToasts();
@@ -239,8 +245,8 @@ $("#toasts-dismiss").addEventListener("click", () => {
 document.addEventListener("keydown", (event) => {
   // Not an Escape that something else took (a form on a card closes with it).
   if (event.key !== "Escape" || event.defaultPrevented) return;
-  const newest = $("#toasts > .toast");
-  if (newest) removeToast(newest);
+  const chosen = document.activeElement?.closest("#toasts > .toast") || $("#toasts > .toast");
+  if (chosen) removeToast(chosen);
 });
 
 function escapeHtml(text) {
@@ -399,6 +405,8 @@ function setUpEditing(card, id) {
     const camera = state.cameras.get(id) || {};
     form.name.value = camera.name ?? "";
     form.source.value = camera.source ?? "";
+    // What it showed: only what the user changes is sent, not what others changed since.
+    form._opened = { name: form.name.value, source: form.source.value };
     error.textContent = "";
     form.hidden = false;
     open.setAttribute("aria-expanded", "true");
@@ -413,11 +421,10 @@ function setUpEditing(card, id) {
   });
   form.addEventListener("submit", async (event) => {
     event.preventDefault();
-    const camera = state.cameras.get(id) || {};
     const changes = {};
     for (const key of ["name", "source"]) {
       const value = form[key].value.trim();
-      if (value !== camera[key]) changes[key] = value;
+      if (value !== form._opened[key]) changes[key] = value;
     }
     if (!Object.keys(changes).length) {
       close();
@@ -537,7 +544,9 @@ async function patchCamera(id, changes, report = null) {
   // the camera as known here, and would otherwise undo the change on the page (untick
   // "auto" just ticked) until the answer came.
   const before = state.cameras.get(id);
-  state.cameras.set(id, { ...before, ...changes });
+  // Not the source: a password typed into it would show on the card until the answer.
+  const { source: _, ...shown } = changes;
+  state.cameras.set(id, { ...before, ...shown });
   const askedAt = performance.now();
   state.changedAt.set(id, askedAt);
   let taken = false;
@@ -963,9 +972,12 @@ async function loadRecentAlarms() {
   const recent = events.filter((e) => e.started_at > clearedThrough).slice(0, HISTORY_EVENTS);
   if (!recent.length) return;
   const pictures = new Map();  // event id -> {frame, difference}: its first snapshots
+  let listedAll = false;  // Every snapshot since the oldest event: none listed is none kept.
   try {
     const since = Math.min(...recent.map((e) => e.started_at)) - 1;
-    for (const snap of await api("GET", `/api/snapshots?since=${since}&limit=2000`)) {
+    const snapshots = await api("GET", `/api/snapshots?since=${since}&limit=${HISTORY_SNAPSHOTS}`);
+    listedAll = snapshots.length < HISTORY_SNAPSHOTS;
+    for (const snap of snapshots) {
       if (snap.event_id === null || snap.event_id === undefined) continue;
       const entry = pictures.get(snap.event_id) || {};
       entry[snap.kind] = snap.url;  // Newest first: the last one seen is the first taken.
@@ -986,8 +998,10 @@ async function loadRecentAlarms() {
       + `${event.boxes && event.boxes.length ? `: ${objectsText(event)}` : ""}`;
     const picture = pictures.get(event.id) || {};
     setAlarmPicture(item, picture.frame, picture.difference);
-    // None listed: none was saved (a full disk), or it has been deleted since.
-    if (!picture.frame) setNoPicture(item, "no snapshot", "none was saved, or it has been deleted since");
+    // None among all listed: none was saved (a full disk), or it has been deleted since.
+    if (!picture.frame && listedAll) {
+      setNoPicture(item, "no snapshot", "none was saved, or it has been deleted since");
+    }
     if (event.ended_at) setAlarmEnded(item, event.ended_at - event.started_at, event.max_area);
     list.append(item);
   }
@@ -1129,10 +1143,10 @@ $("#upload").addEventListener("submit", (event) => {
   const xhr = new XMLHttpRequest();
   xhr.open("POST", "/api/analyses");
   xhr.upload.onprogress = (e) => { if (e.lengthComputable) bar.value = e.loaded / e.total; };
-  let sent = false;  // The whole file went out: the server may have taken it.
-  xhr.upload.onload = () => { sent = true; };
   const cancel = $(".cancel", pending);
   cancel.hidden = false;
+  // Sent whole, the video is the server's to analyse: nothing is left to cancel.
+  xhr.upload.onload = () => { cancel.hidden = true; };
   cancel.onclick = () => xhr.abort();
   state.uploads.add(xhr);
   xhr.onloadend = () => {
@@ -1141,9 +1155,7 @@ $("#upload").addEventListener("submit", (event) => {
   };
   xhr.onabort = () => {
     setStatus(pending, null, "cancelled");
-    $(".error", pending).textContent = sent
-      ? "Upload cancelled, after the whole file was sent: if the server took it, its analysis shows here."
-      : "Upload cancelled: the video was not sent.";
+    $(".error", pending).textContent = "Upload cancelled: the video was not sent.";
   };
   xhr.onload = () => {
     if (xhr.status === 401) {
@@ -1317,24 +1329,39 @@ function endAt(params, end, snap, id = snap.id) {
   params.set(`${end}_id`, String(id));
 }
 
-/* Asks for a listing; its snapshots, or null where a newer one was asked for meanwhile
-   (or it failed: said in a toast). */
+/* Asks for a listing; its snapshots, or null where it failed (said in a toast). */
 async function listGallery(params) {
-  const asked = ++state.gallery.asked;
-  let snapshots;
   try {
-    snapshots = await api("GET", `/api/snapshots?${params}`);
+    return await api("GET", `/api/snapshots?${params}`);
   } catch (error) {
     toast(`Cannot load snapshots: ${escapeHtml(error.message)}`, "error");
     return null;
   }
-  return asked === state.gallery.asked ? snapshots : null;
+}
+
+/* Runs a gallery listing after those asked for before it: an alarm's refresh and "Show
+   older" each build on what the other showed, and neither answer is lost. */
+function queueGallery(task) {
+  const run = state.gallery.queue.then(task);
+  state.gallery.queue = run.catch(() => {});
+  return run;
 }
 
 /* fresh: from the newest, with the filters of the form; otherwise (a new snapshot, a
    deletion, the server back) the same filters and as far down as shown, with what came
-   in since on top. */
-async function loadGallery(fresh = false) {
+   in since on top (one refresh waiting stands for any asked meanwhile). */
+function loadGallery(fresh = false) {
+  if (!fresh) {
+    if (state.gallery.refreshWaiting) return state.gallery.queue;
+    state.gallery.refreshWaiting = true;
+  }
+  return queueGallery(() => {
+    if (!fresh) state.gallery.refreshWaiting = false;
+    return refreshGallery(fresh);
+  });
+}
+
+async function refreshGallery(fresh) {
   const gallery = state.gallery;
   if (fresh || !gallery.filters) gallery.filters = galleryQuery();
   const params = new URLSearchParams(gallery.filters);
@@ -1353,21 +1380,25 @@ async function loadGallery(fresh = false) {
   renderGallery();
 }
 
-async function showOlder() {
-  const gallery = state.gallery;
-  if (gallery.oldest === null) return;
-  const params = new URLSearchParams(gallery.filters);
-  endAt(params, "until", gallery.oldest, gallery.oldest.id - 1);
-  params.set("limit", String(GALLERY_PAGE + 1));
+function showOlder() {
   const button = $("#gallery-more");
   button.disabled = true;
+  return queueGallery(showOlderPage).finally(() => { button.disabled = false; });
+}
+
+async function showOlderPage() {
+  const gallery = state.gallery;
+  const room = Math.min(GALLERY_PAGE, GALLERY_MAX - gallery.snapshots.length);
+  if (gallery.oldest === null || room <= 0) return;
+  const params = new URLSearchParams(gallery.filters);
+  endAt(params, "until", gallery.oldest, gallery.oldest.id - 1);
+  params.set("limit", String(room + 1));
   const older = await listGallery(params);
-  button.disabled = false;
   if (!older) return;
-  const page = older.slice(0, GALLERY_PAGE);
+  const page = older.slice(0, room);
   gallery.snapshots = gallery.snapshots.concat(page);
   if (page.length) gallery.oldest = page.at(-1);
-  gallery.more = older.length > GALLERY_PAGE;
+  gallery.more = older.length > room;
   renderGallery();
 }
 
@@ -1381,9 +1412,11 @@ function renderGallery() {
       <figcaption>${escapeHtml(cameraName(s.camera_id))} · ${fmtDate(s.ts)} · ${s.kind}</figcaption>
     </figure>`).join("") || `<p class="muted">${more ? "None left here: older ones are below."
       : "No snapshots yet: Activate a camera."}</p>`;
-  $("#gallery-more").hidden = !more;
+  const full = snapshots.length >= GALLERY_MAX;  // As many as a page holds: no more below.
+  $("#gallery-more").hidden = !more || full;
   $("#gallery-count").textContent = !snapshots.length ? ""
-    : `${plural(snapshots.length, "snapshot")} shown, newest first${more ? ", older ones below" : ""}`;
+    : `${plural(snapshots.length, "snapshot")} shown, newest first`
+      + `${!more ? "" : full ? ": for older ones, filter by time" : ", older ones below"}`;
   const zip = $("#zip-all");
   const params = new URLSearchParams(filters);
   if (snapshots.length) {

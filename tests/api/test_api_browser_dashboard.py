@@ -386,7 +386,7 @@ def test_many_cameras_stream_what_connections_allow_and_poll_the_rest_at_their_r
     assert "shown/s" in page.locator(".card.polled .fps").first.inner_text()
 
 
-def test_a_stream_that_becomes_polled_while_the_page_is_hidden_closes_its_connection(
+def test_a_camera_that_becomes_polled_while_the_page_is_hidden_asks_nothing_till_shown(
     serve: Callable[..., Running], page: Any, motion_video: Path
 ) -> None:
     server = serve()

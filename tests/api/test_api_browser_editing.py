@@ -16,6 +16,7 @@ from typing import Any
 import httpx
 import pytest
 
+from app.api.routes import analyses
 from tests.api.test_api_browser_dashboard import alarm, publish
 from tests.api.vigil_livekit import (
     Running,
@@ -159,20 +160,92 @@ def test_show_older_pages_through_shared_times_and_the_zip_is_what_is_shown(
     assert thumbnail_ids(page) == newest_first[199:]
 
 
+def test_an_alarm_s_refresh_and_show_older_at_once_both_land(
+    serve: Callable[..., Running], page: Any
+) -> None:
+    # The gallery's listings cancelled each other: the last asked won, and the other's
+    # answer was dropped (a new snapshot never shown, or a click on Show older lost).
+    server = serve()
+    ids = [add_snapshot(server, 1, T0 + i) for i in range(230)]
+    open_page(server, page)
+    wait_for(lambda: page.locator("#thumbs figure").count() == 200, 10, "the first page")
+    slow: list[Any] = []
+
+    def refresh_slowly(route: Any) -> None:
+        if "until_id" in route.request.url:  # Show older's page: at once.
+            route.continue_()
+        else:  # The refresh an alarm asks for: answered after the click.
+            slow.append(route)
+
+    page.route("**/api/snapshots?*", refresh_slowly)
+    later = add_snapshot(server, 1, T0 + 1000)
+    page.evaluate("() => { loadGallery(); }")
+    page.get_by_role("button", name="Show older").click()
+    wait_for(lambda: slow or page.wait_for_timeout(50), 10, "the refresh asked for")
+    page.wait_for_timeout(300)
+    slow.pop().continue_()
+    page.unroute("**/api/snapshots?*")
+    wait_for(
+        lambda: page.locator("#thumbs figure").count() == 231, 10, "both the new and the older"
+    )
+    assert thumbnail_ids(page) == [later, *ids[::-1]]
+
+
+def test_a_save_on_the_edit_form_sends_only_what_was_changed_there_and_hides_a_password(
+    serve: Callable[..., Running], page: Any
+) -> None:
+    server = serve()
+    cam = add_camera(server.base, nowhere(), name="door")
+    open_page(server, page, cards=1)
+    card = page.locator(f'.card[data-id="{cam}"]')
+    card.get_by_role("button", name="Edit").click()
+    # Meanwhile another client points the camera elsewhere, and the page hears of it.
+    elsewhere = nowhere()
+    httpx.patch(f"{server.base}/api/cameras/{cam}", json={"source": elsewhere}).raise_for_status()
+    page.evaluate("() => loadCameras()")
+    wait_for(lambda: card.locator(".cam-source").inner_text() == elsewhere, 10, "the new source")
+    # The user renames it only: the other client's source stays.
+    card.get_by_label("Name").fill("porch")
+    card.get_by_label("Name").press("Enter")
+    wait_for(lambda: card.locator(".cam-name").inner_text() == "porch", 10, "the rename")
+    stored = httpx.get(f"{server.base}/api/cameras/{cam}").json()
+    assert (stored["name"], stored["source"]) == ("porch", elsewhere)
+
+    # A password typed into the source is not shown on the card while it is saved.
+    held: list[Any] = []
+    page.route(
+        f"**/api/cameras/{cam}",
+        lambda route: held.append(route) if route.request.method == "PATCH" else route.continue_(),
+    )
+    card.get_by_role("button", name="Edit").click()
+    card.get_by_label("Source").fill("rtsp://admin:n3wpass@127.0.0.1:9/live")
+    card.get_by_label("Source").press("Enter")
+    wait_for(lambda: held or page.wait_for_timeout(50), 10, "the save asked for")
+    # As a status message redraws the card meanwhile.
+    page.evaluate("(id) => updateCard(state.cards.get(id), state.cameras.get(id))", cam)
+    assert "n3wpass" not in card.inner_text()
+    assert "n3wpass" not in (card.locator(".cam-source").get_attribute("title") or "")
+    held.pop().continue_()
+    card.get_by_label("Source").wait_for(state="hidden", timeout=10000)
+    assert card.locator(".cam-source").inner_text() == "rtsp://admin:***@127.0.0.1:9/live"
+
+
 def test_an_upload_under_way_is_warned_of_on_leaving_and_can_be_cancelled(
-    serve: Callable[..., Running], page: Any, motion_video: Path
+    serve: Callable[..., Running], page: Any, motion_video: Path, monkeypatch: pytest.MonkeyPatch
 ) -> None:
     server = serve()
     open_page(server, page)
-    held: list[Any] = []  # The upload never gets an answer: it stays under way.
-    page.route(
-        "**/api/analyses",
-        lambda route: held.append(route) if route.request.method == "POST" else route.continue_(),
-    )
+    # A slow line: the video takes seconds to go out, to the real server.
+    network = page.context.new_cdp_session(page)
+    network.send("Network.enable")
+    conditions = {"offline": False, "latency": 0, "downloadThroughput": -1}
+    network.send("Network.emulateNetworkConditions", {**conditions, "uploadThroughput": 20_000})
+    assert motion_video.stat().st_size > 100_000  # Five seconds or more on that line.
     page.set_input_files("#upload input[type=file]", str(motion_video))
     page.click("#upload button[type=submit]")
-    wait_for(lambda: held or page.wait_for_timeout(50), 10, "the upload to be sent")
     panel = page.locator("#analyses .analysis").first
+    bar = panel.locator("progress.upload-bar")
+    wait_for(lambda: 0 < float(bar.evaluate("b => b.value")) < 1, 10, "the upload under way")
     assert panel.locator(".status").inner_text() == "uploading"
 
     dialogs: list[str] = []
@@ -192,9 +265,33 @@ def test_an_upload_under_way_is_warned_of_on_leaving_and_can_be_cancelled(
     cancel = panel.get_by_role("button", name="Cancel upload")
     cancel.click()
     wait_for(lambda: panel.locator(".status").inner_text() == "cancelled", 5, "the cancel")
-    assert "cancelled" in panel.locator(".error").inner_text().lower()
+    assert panel.locator(".error").inner_text() == "Upload cancelled: the video was not sent."
     assert cancel.is_hidden()
+    page.wait_for_timeout(1000)  # What reached the server was cut off: nothing to analyse.
     assert httpx.get(f"{server.base}/api/analyses").json() == []
+
+    # At full speed, once the whole video is sent it is the server's, though the server
+    # takes a while to store it and answer: no Cancel offered meanwhile.
+    network.send("Network.emulateNetworkConditions", {**conditions, "uploadThroughput": -1})
+
+    def slow_copy(*args: Any) -> int:
+        time.sleep(2.0)
+        return int(copy(*args))
+
+    copy = analyses._copy_limited
+    monkeypatch.setattr(analyses, "_copy_limited", slow_copy)
+    page.set_input_files("#upload input[type=file]", str(motion_video))
+    page.click("#upload button[type=submit]")
+    sent = page.locator("#analyses .analysis").first
+    wait_for(
+        lambda: float(sent.locator("progress.upload-bar").evaluate("b => b.value")) == 1,
+        10,
+        "the video sent",
+    )
+    assert sent.locator(".status").inner_text() == "uploading"  # No answer yet.
+    assert sent.get_by_role("button", name="Cancel upload").is_hidden()
+    wait_for(lambda: sent.locator(".status").inner_text() == "done", 60, "the analysis done")
+    assert len(httpx.get(f"{server.base}/api/analyses").json()) == 1
     # Nothing under way: the page closes without asking.
     with page.expect_event("close", timeout=5000):
         page.close(run_before_unload=True)

@@ -63,7 +63,9 @@ A running-average background (the classic of Motion and of OpenCV's
   an object on the move, and for a few frames after it stops (so that the
   stale-region check below mostly sees it whole), only neighbours that have
   been still for a while count, so a camouflaged object is not eaten from the
-  one point where it matches the background. A region that stays "moving" without any change,
+  one point where it matches the background; and a region that moves with most
+  of its inside unchanged (a lorry's plain side, something creeping), seen so at
+  two stale-region checks running, is left whole. A region that stays "moving" without any change,
   from frame to frame or over ``check_every`` frames (a ghost or a stopped
   object, not one creeping a fraction of a pixel a frame), becomes
   background after ``relit_after`` frames where it is no object: the frame
@@ -225,7 +227,7 @@ class AdaptiveBackground(MotionMethod):
         deviation (grey levels: mean |difference| when still), float32 planes
         (``kernels.MODEL``)."""
         self._state: np.ndarray | None = None
-        """Settled, stopped, stirring, the two raw planes and the guard's frames left
+        """Settled, kept, stirring, the two raw planes and the guard's frames left
         (``kernels.STATE``)."""
         self._raw_plane = kernels.RAW[0]
         """The state's plane that holds the previous frame's raw motion."""
@@ -409,7 +411,9 @@ class AdaptiveBackground(MotionMethod):
         if not followed:
             self.noise.update(difference, gray, self._previous_mask if crowded else None)
         if self._frame_index % self.check_every == 0:
-            self._absorb_still_regions(gray, mask)
+            # Not while ghosts of a first frame are expected: joined to the objects they
+            # came from, on the move, they would be kept whole too.
+            self._absorb_still_regions(gray, mask, keep_moving=not ghosts_expected)
         self._recent.append(gray)
         self._previous_mask = mask
         self._raw_plane = raw_plane
@@ -574,12 +578,13 @@ class AdaptiveBackground(MotionMethod):
         )
         self._previous_mask = moved(self._previous_mask, smooth=False)
         self._previous_moving = cv2.countNonZero(self._previous_mask)
-        for plane in (kernels.SETTLED, kernels.STOPPED, kernels.STIRRED, self._raw_plane):
+        for plane in (kernels.SETTLED, kernels.KEPT, kernels.STIRRED, self._raw_plane):
             self._state[plane] = moved(self._state[plane], smooth=False)
         self._still_frames = moved(self._still_frames, smooth=False)
 
-    def _absorb_still_regions(self, gray: GrayImage, mask: Mask) -> None:
-        """Count, per motion region, frames without any change; absorb the stale ones."""
+    def _absorb_still_regions(self, gray: GrayImage, mask: Mask, keep_moving: bool) -> None:
+        """Count, per motion region, frames without any change; absorb the stale ones;
+        with ``keep_moving``, keep whole those on the move with an unchanging inside."""
         assert self._still_frames is not None and self._state is not None
         # Regions are sought in the box of the mask's pixels only, with a pixel of
         # background around them (their borders are measured): most of a frame holds
@@ -605,9 +610,10 @@ class AdaptiveBackground(MotionMethod):
             RELIT_CORRELATION,
             LEAST_PATTERN,
             CLEAR_EDGE,
+            keep_moving,
             self._still_frames,
             self._background,
-            self._state[kernels.STOPPED],
+            self._state[kernels.KEPT],
         )
 
     def reset(self) -> None:

@@ -10,7 +10,7 @@ from typing import Any
 import httpx
 import pytest
 
-from tests.api.vigil_livekit import Running, wait_for, wait_for_pictures, write_video
+from tests.api.vigil_livekit import Running, show_cameras, wait_for, wait_for_pictures, write_video
 from tests.sources.damaged_video import cut_after
 
 pytestmark = pytest.mark.browser
@@ -79,14 +79,8 @@ def test_more_cameras_than_connections_all_show(
     serve: Callable[..., Running], page: Any, motion_video: Path
 ) -> None:
     server = serve()
-    for i in range(7):
-        httpx.post(
-            f"{server.base}/api/cameras",
-            json={"name": f"cam{i}", "source": f"file://{motion_video}"},
-        ).raise_for_status()
-    page.goto(server.base + "/")
     # Seven pictures at once: more than a browser's six connections could stream.
-    wait_for_pictures(page, 7, timeout_ms=30000)
+    show_cameras(server, page, f"file://{motion_video}", 7)
     sources = page.locator(".card img.live").evaluate_all("imgs => imgs.map(i => i.src)")
     # Four streams (the browser's connection budget, less two for the rest); polled after.
     assert ["/stream.mjpg" in s for s in sources] == [True] * 4 + [False] * 3, sources

@@ -13,11 +13,10 @@ import pytest
 
 from tests.api.vigil_livekit import (
     Running,
-    add_camera,
     add_snapshot,
     set_hidden,
+    show_cameras,
     wait_for,
-    wait_for_pictures,
 )
 
 pytestmark = pytest.mark.browser
@@ -90,9 +89,7 @@ def test_a_hidden_page_closes_its_streams_and_opens_them_again_when_shown(
     # A tab in the background kept its MJPEG streams open: with the ~6 connections a
     # browser allows a host across all tabs, a forgotten tab locked up a new one.
     server = serve()
-    ids = [add_camera(server.base, f"file://{motion_video}", name=f"cam{i}") for i in range(2)]
-    page.goto(server.base + "/")
-    wait_for_pictures(page, 2, timeout_ms=30000)
+    ids = show_cameras(server, page, f"file://{motion_video}", 2)
     cameras = server.server.config.app.state.services.cameras
     hubs = [cameras.get(cam).hub for cam in ids]
     assert page.evaluate(STREAMS_OPEN) == 2

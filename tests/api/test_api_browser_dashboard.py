@@ -26,6 +26,7 @@ from tests.api.vigil_livekit import (
     live_settings,
     running_server,
     set_hidden,
+    show_cameras,
     wait_for,
     wait_for_pictures,
 )
@@ -364,10 +365,7 @@ def test_many_cameras_stream_what_connections_allow_and_poll_the_rest_at_their_r
     serve: Callable[..., Running], page: Any, motion_video: Path
 ) -> None:
     server = serve()
-    for i in range(6):
-        add_camera(server.base, f"file://{motion_video}", name=f"cam{i}")
-    page.goto(server.base + "/")
-    wait_for_pictures(page, 6, timeout_ms=30000)
+    show_cameras(server, page, f"file://{motion_video}", 6)
     sources = page.locator(".card img.live").evaluate_all("imgs => imgs.map(i => i.src)")
     assert ["stream.mjpg" in s for s in sources] == [True] * 4 + [False] * 2, sources
     polled: Counter[str] = Counter()
@@ -390,9 +388,7 @@ def test_a_camera_that_becomes_polled_while_the_page_is_hidden_asks_nothing_till
     serve: Callable[..., Running], page: Any, motion_video: Path
 ) -> None:
     server = serve()
-    ids = [add_camera(server.base, f"file://{motion_video}", name=f"cam{i}") for i in range(4)]
-    page.goto(server.base + "/")
-    wait_for_pictures(page, 4, timeout_ms=30000)
+    ids = show_cameras(server, page, f"file://{motion_video}", 4)
     last = page.locator(f'.card[data-id="{ids[3]}"] img.live')
     stream = f"/api/cameras/{ids[3]}/stream.mjpg"
     assert stream in (last.get_attribute("src") or "")

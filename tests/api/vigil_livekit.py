@@ -130,6 +130,15 @@ def wait_for_pictures(
     )
 
 
+def show_cameras(server: Running, page: Any, source: str, count: int) -> list[int]:
+    """``count`` cameras of ``source`` (cam0, cam1, ...) shown on a freshly opened page,
+    each with a picture; their ids."""
+    ids = [add_camera(server.base, source, name=f"cam{i}") for i in range(count)]
+    page.goto(server.base + "/")
+    wait_for_pictures(page, count, timeout_ms=30000)
+    return ids
+
+
 def add_camera(
     base: str, source: str, name: str = "lane", activate: bool = False, **extra: Any
 ) -> int:

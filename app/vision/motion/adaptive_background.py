@@ -65,9 +65,9 @@ A running-average background (the classic of Motion and of OpenCV's
   been still for a while count, so a camouflaged object is not eaten from the
   one point where it matches the background; and a region that moves with most
   of its inside unchanged (a lorry's plain side, something creeping), seen so at
-  two stale-region checks running, is left whole. A region that stays "moving" without any change,
-  from frame to frame or over ``check_every`` frames (a ghost or a stopped
-  object, not one creeping a fraction of a pixel a frame), becomes
+  two stale-region checks running, is left whole. A region that stays "moving"
+  without any change, from frame to frame or over ``check_every`` frames (a
+  ghost or a stopped object, not one creeping a fraction of a pixel a frame), becomes
   background after ``relit_after`` frames where it is no object: the frame
   there is the background in another light (it correlates with it: a lamp came
   on, a shadow fell), or a ghost (across the region's border the frame steps

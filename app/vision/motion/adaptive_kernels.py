@@ -957,10 +957,10 @@ def age_still_regions(
     was_kept = np.zeros(regions, np.bool_)
     was_moving = np.zeros(regions, np.bool_)
     stirs = np.zeros(regions, np.int64)  # Pixels that stir, and all, of each region.
-    sizes = np.zeros(regions, np.int64)
+    pixels = np.zeros(regions, np.int64)
     for y in range(rows):
         for x in range(cols):
-            sizes[labels[y, x]] += 1
+            pixels[labels[y, x]] += 1
             if stirring[top + y, left + x] != 0:
                 stale[labels[y, x]] = False
                 stirs[labels[y, x]] += 1
@@ -969,22 +969,16 @@ def age_still_regions(
                 was_kept[labels[y, x]] = True
             elif marked != 0:
                 was_moving[labels[y, x]] = True
-    quiet = stirs <= QUIET_INSIDE * sizes
     # Most regions on most checks are objects on the move, and need nothing more. The
     # stale ones large enough to judge, and not kept already, get a row of sums: frame,
     # background, their squares and products, and the steps of frame and background
     # across the border.
-    pixels = np.zeros(regions, np.int64)
-    if stale.any():
-        for y in range(rows):
-            for x in range(cols):
-                if stale[labels[y, x]]:
-                    pixels[labels[y, x]] += 1
-    kept_again = (pixels >= least_pattern) & was_kept
+    large = pixels >= least_pattern
+    kept_again = large & stale & was_kept
     row = np.full(regions, -1, np.int64)
     judged = 0
     for label in range(1, regions):
-        if pixels[label] >= least_pattern and not kept_again[label]:
+        if large[label] and stale[label] and not kept_again[label]:
             row[label] = judged
             judged += 1
     sums = np.zeros((judged, 7), np.float64)
@@ -1025,6 +1019,14 @@ def age_still_regions(
                 continue
         after[label] = absorb_after
         kept[label] = frame_step >= clear_edge * model_step
+    # What each region's pixels are marked with: kept whole as stopped, or on the move with
+    # a quiet inside (kept whole where it was so at the last count too), or nothing.
+    marks = np.zeros(regions, np.uint8)
+    for label in range(1, regions):
+        if kept[label]:
+            marks[label] = STOPPED
+        elif keep_moving and not stale[label] and stirs[label] <= QUIET_INSIDE * pixels[label]:
+            marks[label] = ON_THE_MOVE if was_moving[label] else SEEN_MOVING
     # Outside the part, nothing is a region: every count restarts.
     still_frames[:top] = 0
     still_frames[top + rows :] = 0
@@ -1040,7 +1042,4 @@ def age_still_regions(
                 background[pixel] = np.float32(gray[pixel])
                 count = 0
             still_frames[pixel] = count
-            moving = 0
-            if keep_moving and label != 0 and not stale[label] and quiet[label]:
-                moving = ON_THE_MOVE if was_moving[label] else SEEN_MOVING
-            kept_out[pixel] = STOPPED if kept[label] else moving
+            kept_out[pixel] = marks[label]

@@ -82,7 +82,7 @@ def _detect_width(value: str) -> int:
     try:
         return check_detect_width(width)
     except ValueError as exc:
-        raise argparse.ArgumentTypeError(str(exc)) from None
+        raise argparse.ArgumentTypeError(f"the detection width {exc}") from None
 
 
 def _port(value: str) -> int:

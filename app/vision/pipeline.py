@@ -65,11 +65,10 @@ so anything wider is its full size, and says so with 0)."""
 
 def check_detect_width(width: int) -> int:
     """``width`` if it is a detection width (``PipelineConfig.detect_width``), else
-    ValueError saying which are."""
+    ValueError saying which are (its message names no field: the caller's does)."""
     if width != 0 and not MIN_DETECT_WIDTH <= width <= MAX_DETECT_WIDTH:
         raise ValueError(
-            f"detect_width is 0 (full size) or {MIN_DETECT_WIDTH} to {MAX_DETECT_WIDTH} pixels,"
-            f" not {width}"
+            f"is 0 (full size) or {MIN_DETECT_WIDTH} to {MAX_DETECT_WIDTH} pixels, not {width}"
         )
     return width
 

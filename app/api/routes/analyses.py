@@ -74,10 +74,13 @@ async def upload(
         raise HTTPException(422, "min_area must be a number of pixels, 0 or more")
     try:
         check_min_area(min_area)
-        if detect_width is not None:
-            check_detect_width(detect_width)
     except ValueError as exc:
         raise HTTPException(422, str(exc)) from None
+    if detect_width is not None:
+        try:
+            check_detect_width(detect_width)
+        except ValueError as exc:
+            raise HTTPException(422, f"detect_width {exc}") from None
     unknown = sorted(set((await request.form()).keys()) - UPLOAD_FIELDS)
     if unknown:  # A misspelt setting (min-area) is an error, as in the camera routes.
         raise HTTPException(

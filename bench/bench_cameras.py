@@ -659,12 +659,27 @@ def measure_paced(clip: Path, folder: Path, windows: Windows) -> list[PacedRow]:
     return rows
 
 
-def segmentation_floor(clip: Path, windows: Windows) -> list[float]:
+@dataclass(frozen=True)
+class Floor:
+    """``segmentation_floor``'s figures: thread CPU ms per frame, the median over the windows."""
+
+    decode_ms: float
+    """The JPEG decoded to grey at detection size."""
+    segment_ms: float
+    """That grey prepared (denoised) and segmented."""
+
+    @property
+    def ms(self) -> float:
+        return self.decode_ms + self.segment_ms
+
+
+def segmentation_floor(clip: Path, windows: Windows) -> tuple[list[float], list[float]]:
     """Per window, the thread CPU milliseconds per frame of what no activated camera
     with the default method can skip: its JPEG decoded to grey at detection size (as the
-    camera decodes it), prepared (denoised) and segmented, one frame every frame period.
-    Run in a spawned process with one OpenCV thread. Reading, the stages after
-    segmentation, alarms and waking up are left out, so a camera costs more."""
+    camera decodes it), and that grey prepared (denoised) and segmented, one frame every
+    frame period; the two apart. Run in a spawned process with one OpenCV thread.
+    Reading, the stages after segmentation, alarms and waking up are left out, so a
+    camera costs more."""
     cv2.setNumThreads(1)
     warm_up()
     source = FileSource(clip)
@@ -677,7 +692,8 @@ def segmentation_floor(clip: Path, windows: Windows) -> list[float]:
     source.close()
     pipeline = Pipeline(PipelineConfig(grey_stats=False), FPS)
     bounds = windows.bounds(time.monotonic())
-    cpu = [0.0] * windows.count
+    decoding = [0.0] * windows.count
+    segmenting = [0.0] * windows.count
     frames = [0] * windows.count
     due = time.monotonic()
     for jpeg in itertools.cycle(jpegs):
@@ -687,18 +703,25 @@ def segmentation_floor(clip: Path, windows: Windows) -> list[float]:
             break
         start = time.thread_time()
         gray = JpegFrame(jpeg).gray(pipeline.config.detect_width)
+        decoded = time.thread_time()
         pipeline.method.apply(pipeline.prepare(gray))
         window = sum(due >= bound for bound in bounds) - 1
         if window >= 0:
-            cpu[window] += time.thread_time() - start
+            decoding[window] += decoded - start
+            segmenting[window] += time.thread_time() - decoded
             frames[window] += 1
-    return [1000 * c / n if n else float("nan") for c, n in zip(cpu, frames, strict=True)]
+
+    def per_frame(cpu: list[float]) -> list[float]:
+        return [1000 * c / n if n else float("nan") for c, n in zip(cpu, frames, strict=True)]
+
+    return per_frame(decoding), per_frame(segmenting)
 
 
-def measure_floor(clip: Path, windows: Windows) -> float:
-    """``segmentation_floor`` in a spawned process: the median over the windows."""
+def measure_floor(clip: Path, windows: Windows) -> Floor:
+    """``segmentation_floor`` in a spawned process."""
     with mp.get_context("spawn").Pool(1) as pool:
-        return median(pool.apply(segmentation_floor, (clip, windows)))
+        decoding, segmenting = pool.apply(segmentation_floor, (clip, windows))
+    return Floor(median(decoding), median(segmenting))
 
 
 @dataclass(frozen=True)
@@ -779,7 +802,7 @@ def print_motion_problems(motion: MotionRun) -> None:
 
 
 def print_paced(
-    args: argparse.Namespace, paced: list[PacedRow], motion: MotionRun | None, floor_ms: float
+    args: argparse.Namespace, paced: list[PacedRow], motion: MotionRun | None, floor: Floor
 ) -> None:
     motion_ms = median(motion.ms_per_frame) if motion is not None else float("nan")
     rows: list[list[Cell]] = [
@@ -840,10 +863,16 @@ def print_paced(
                 if row.trial.mode == mode
             )
             print(f"{label} ({mode.method}) / Motion, CPU per frame: {ratios}")
-    ratio = f" = {fmt(floor_ms / motion_ms, 2)} x Motion" if motion is not None else ""
+
+    def share(ms: float) -> str:
+        return f" = {fmt(ms / motion_ms, 2)} x Motion" if motion is not None else ""
+
     print(
         f"Decoding and segmentation alone ({DEFAULT_METHOD}, paced at {FPS:g} fps, OpenCV 1 "
-        f"thread, thread CPU): {fmt(floor_ms, 2)} ms/frame{ratio}\n"
+        f"thread, thread CPU): {fmt(floor.ms, 2)} ms/frame{share(floor.ms)}\n"
+        f"    decoding to grey at detection size {fmt(floor.decode_ms, 2)} ms"
+        f"{share(floor.decode_ms)}; denoising and segmentation {fmt(floor.segment_ms, 2)} ms"
+        f"{share(floor.segment_ms)}\n"
         "    what an activated camera cannot skip: reading, the stages after segmentation,"
         " alarms and waking up come on top"
     )

@@ -8,14 +8,23 @@ grey picture at a half, quarter or eighth of the size straight from the JPEG's
 DCT coefficients (libjpeg's scaled decoding, several times cheaper); only a
 viewer or a snapshot decodes full colour, once per frame. A frame that arrives
 already decoded (demo scene, H.264 stream, a device) offers the same interface.
+
+Both decoders are libjpeg-turbo, pixel for pixel alike. Grey goes through
+OpenCV, whose scaled decoding is as fast as any; colour through simplejpeg
+(TurboJPEG's own colour conversion), which took 0.75 ms where OpenCV's
+``imdecode`` took 1.14 at 640x480, and 4.4 where it took 6.0 at 1920x1080
+(best of 15 here). Damaged data decodes as far as it goes in both, as libjpeg
+leaves it.
 """
 
 from __future__ import annotations
 
 from abc import ABC, abstractmethod
+from typing import cast
 
 import cv2
 import numpy as np
+import simplejpeg
 
 from app.vision.preprocess import to_gray
 from app.vision.types import GrayImage, Image
@@ -29,6 +38,8 @@ REDUCED_GRAY = {
 
 SOF_MARKERS = frozenset(range(0xC0, 0xD0)) - {0xC4, 0xC8, 0xCC}
 """JPEG start-of-frame markers (every coding process); C4, C8 and CC are not frames."""
+
+UNDECODABLE = "camera sent a JPEG that does not decode"
 
 MAX_SIDE = 16384
 """Larger than any camera's picture; a header claiming more is garbage, not a frame."""
@@ -82,7 +93,14 @@ class JpegFrame(SourceFrame):
 
     def image(self) -> Image:
         if self._image is None:
-            self._image = self._decode(cv2.IMREAD_COLOR)
+            assert self.jpeg is not None
+            try:
+                # Not strict: a frame with damaged data decodes as far as it goes, as
+                # OpenCV's grey of it does (libjpeg warns, and fills the rest).
+                picture = simplejpeg.decode_jpeg(self.jpeg, colorspace="BGR", strict=False)
+            except ValueError:
+                raise FrameError(UNDECODABLE) from None
+            self._image = cast(Image, picture)
         return self._image
 
     def gray(self, min_width: int) -> GrayImage:
@@ -96,13 +114,14 @@ class JpegFrame(SourceFrame):
         return self._gray[1]
 
     def _decode(self, flag: int) -> np.ndarray:
+        """Grey, through OpenCV (``flag``)."""
         assert self.jpeg is not None
         # As its header says (``size``): an EXIF orientation would turn the picture, not
         # the header, and boxes found on one would be drawn on the other.
         flag |= cv2.IMREAD_IGNORE_ORIENTATION
         picture = cv2.imdecode(np.frombuffer(self.jpeg, np.uint8), flag)
         if picture is None:
-            raise FrameError("camera sent a JPEG that does not decode")
+            raise FrameError(UNDECODABLE)
         return picture
 
 

@@ -97,6 +97,48 @@ def test_any_bytes_give_a_frame_or_a_frame_error(data: bytes) -> None:
             continue
         with contextlib.suppress(FrameError):
             frame.gray(320)
+        with contextlib.suppress(FrameError):
+            frame.image()
+
+
+def opencv_colour(data: bytes) -> np.ndarray | None:
+    """The picture OpenCV decodes (as the header's size says, EXIF aside)."""
+    flags = cv2.IMREAD_COLOR | cv2.IMREAD_IGNORE_ORIENTATION
+    return cv2.imdecode(np.frombuffer(data, np.uint8), flags)
+
+
+@pytest.mark.parametrize(
+    "params",
+    [
+        [cv2.IMWRITE_JPEG_QUALITY, 80],
+        [cv2.IMWRITE_JPEG_PROGRESSIVE, 1],
+        [cv2.IMWRITE_JPEG_SAMPLING_FACTOR, cv2.IMWRITE_JPEG_SAMPLING_FACTOR_444],
+        [cv2.IMWRITE_JPEG_SAMPLING_FACTOR, cv2.IMWRITE_JPEG_SAMPLING_FACTOR_422],
+    ],
+)
+@pytest.mark.parametrize("grey_jpeg", [False, True])
+def test_the_colour_picture_is_opencv_s_pixel_for_pixel(params: list[int], grey_jpeg: bool) -> None:
+    picture = SCENE.frame(3)
+    data = encoded(cv2.cvtColor(picture, cv2.COLOR_BGR2GRAY) if grey_jpeg else picture, *params)
+    image = JpegFrame(data).image()
+    assert image.shape == (480, 640, 3) and image.dtype == np.uint8
+    reference = opencv_colour(data)
+    assert reference is not None
+    np.testing.assert_array_equal(image, reference)
+
+
+def test_a_jpeg_with_damaged_data_shows_what_decodes_as_opencv_does() -> None:
+    """A camera's bit errors spoil part of a frame, not all of it: the picture is what
+    libjpeg makes of it (the grey of detection is too), not a frame error."""
+    data = bytearray(encoded(SCENE.frame(3)))
+    scan = data.index(b"\xff\xda")
+    for at in (scan + 400, scan + 2000, len(data) - 300):
+        data[at] ^= 0x10
+    damaged = bytes(data)
+    reference = opencv_colour(damaged)
+    assert reference is not None  # OpenCV decodes it, with a warning.
+    frame = JpegFrame(damaged)
+    np.testing.assert_array_equal(frame.image(), reference)
 
 
 @pytest.mark.skipif(shutil.which("ffmpeg") is None, reason="needs the ffmpeg binary for H.264")

@@ -17,6 +17,7 @@ const MOTION_WINDOW_S = 60;
 const SENDING = ["connecting", "live"];  // Camera states in which pictures come.
 const STALL_MS = 10000;  // A stream of a live camera whose picture stays the same this long is reopened.
 const TOAST_MAX = 3;     // Toasts shown at once; the rest wait behind "+N more".
+const CLOSED_TOASTS_MAX = 500;  // Alarm toasts closed by the user, remembered until their event ends.
 const ALARM_LIST_MAX = 100;
 const HISTORY_EVENTS = 50;  // Events listed on page load, from GET /api/events.
 const HISTORY_SNAPSHOTS = 2000;  // The most snapshots asked for to show those events'.
@@ -34,6 +35,7 @@ const state = {
   camerasLoaded: false,
   knownCameraIds: new Set(),  // cameras that have events or snapshots, deleted ones too
   alarmItems: new Map(),   // event key -> alarm list entry
+  closedToasts: new Set(), // keys of the alarm toasts the user closed, oldest first
   analyses: new Map(),     // id -> element
   uploads: new Set(),      // the uploads under way (XMLHttpRequest)
   newestEventTs: 0,        // the latest event start (server clock) the page has heard of
@@ -41,11 +43,12 @@ const state = {
   changedAt: new Map(),    // id -> when this page last asked to change the camera
   listedAt: 0,             // when the camera listing last shown was asked for
   // The snapshot gallery: the filters it shows, what it shows (newest first), whether
-  // older ones match too, the oldest it has shown (where older ones start); its listings,
-  // one after another (each builds on what the last showed), and whether a refresh waits.
+  // older ones match too, the oldest it has shown (where older ones start), the ids of
+  // those shown that have been deleted elsewhere; its listings, one after another (each
+  // builds on what the last showed), and the refresh that waits for its turn, if any.
   gallery: {
-    filters: null, snapshots: [], more: false, oldest: null,
-    queue: Promise.resolve(), refreshWaiting: false,
+    filters: null, snapshots: [], more: false, oldest: null, gone: new Set(),
+    queue: Promise.resolve(), waiting: null,
   },
 };
 
@@ -190,10 +193,14 @@ $("#mute").addEventListener("click", () => {
 /* Toasts: at most TOAST_MAX shown, newest first; the rest wait behind "+N more" (with
    "dismiss all"). A toast with a key (an alarm: its camera and event) is updated in
    place by the next one with the same key rather than stacked again. A click on a toast,
-   its close button (Tab reaches it) or Escape (the newest) closes it. */
+   its close button (Tab reaches it) or Escape (the newest) closes it; an alarm's toast
+   closed so stays closed while its event goes on (it alarms again every second or so, and
+   the user closed it to reach what it covered): the alarm list still counts the alarms.
+   Returns the toast, or null for one the user closed. */
 function toast(html, kind = "alarm", key = null) {
   const box = $("#toasts");
   key = key || `${kind}:${html}`;
+  if (state.closedToasts.has(key)) return null;
   let el = findToast(key);
   if (el) {
     clearTimeout(el._timer);
@@ -203,7 +210,7 @@ function toast(html, kind = "alarm", key = null) {
     el.className = `toast toast-${kind}`;
     el.dataset.key = key;
     el.setAttribute("role", kind === "error" ? "alert" : "status");
-    el.addEventListener("click", () => removeToast(el));
+    el.addEventListener("click", () => closeToast(el));
     el._repeats = 1;
   }
   const focused = el.contains(document.activeElement);  // Its close button, kept focused.
@@ -218,6 +225,18 @@ function toast(html, kind = "alarm", key = null) {
 
 function findToast(key) {
   return $$("#toasts > .toast").find((t) => t.dataset.key === key);
+}
+
+/* Closed by the user (not timed out): an alarm's stays closed until its event ends. */
+function closeToast(el) {
+  if (el.classList.contains("toast-alarm")) {
+    state.closedToasts.add(el.dataset.key);
+    // Bounded: an event whose end never comes (a server restart) is not kept for ever.
+    if (state.closedToasts.size > CLOSED_TOASTS_MAX) {
+      state.closedToasts.delete(state.closedToasts.values().next().value);
+    }
+  }
+  removeToast(el);
 }
 
 function removeToast(el) {
@@ -239,14 +258,14 @@ function layoutToasts() {
 }
 
 $("#toasts-dismiss").addEventListener("click", () => {
-  for (const el of $$("#toasts > .toast")) removeToast(el);
+  for (const el of $$("#toasts > .toast")) closeToast(el);
 });
 
 document.addEventListener("keydown", (event) => {
   // Not an Escape that something else took (a form on a card closes with it).
   if (event.key !== "Escape" || event.defaultPrevented) return;
   const chosen = document.activeElement?.closest("#toasts > .toast") || $("#toasts > .toast");
-  if (chosen) removeToast(chosen);
+  if (chosen) closeToast(chosen);
 });
 
 function escapeHtml(text) {
@@ -953,6 +972,7 @@ function onMotionEnd(message) {
   if (item) setAlarmEnded(item, message.duration_s, message.max_area);
   const shown = findToast(`alarm:${key}`);
   if (shown) shown.classList.add("ended");
+  state.closedToasts.delete(`alarm:${key}`);  // The event is over: none of its alarms comes.
 }
 
 /* The recent events (the list survived no reload before), with their first snapshots. */
@@ -1037,7 +1057,7 @@ function connect() {
     if (reconnected) {
       for (const card of state.cards.values()) restartPictures(card);
       loadCameras();
-      loadGallery();
+      loadGallery("shown");
       loadRecentAlarms();
     }
   };
@@ -1347,17 +1367,27 @@ function queueGallery(task) {
   return run;
 }
 
-/* fresh: from the newest, with the filters of the form; otherwise (a new snapshot, a
-   deletion, the server back) the same filters and as far down as shown, with what came
-   in since on top (one refresh waiting stands for any asked meanwhile). */
-function loadGallery(fresh = false) {
-  if (!fresh) {
-    if (state.gallery.refreshWaiting) return state.gallery.queue;
-    state.gallery.refreshWaiting = true;
+/* How the gallery is listed again:
+   - "fresh": from the newest, with the filters of the form (new filters, the page opened);
+   - "shown": the same filters, as far down as shown, with what came in since on top (the
+     server back: snapshots may have been deleted or pruned meanwhile);
+   - "newer": only what came in after the newest shown, put on top (an alarm: listing again
+     all that is shown, up to GALLERY_MAX, would be a large request for each alarm).
+   One refresh waiting for its turn stands for any asked meanwhile ("shown" for "newer"). */
+function loadGallery(how = "newer") {
+  const gallery = state.gallery;
+  if (how !== "fresh") {
+    if (gallery.waiting) {
+      if (how === "shown") gallery.waiting = how;
+      return gallery.queue;
+    }
+    gallery.waiting = how;
   }
   return queueGallery(() => {
-    if (!fresh) state.gallery.refreshWaiting = false;
-    return refreshGallery(fresh);
+    if (how === "fresh") return refreshGallery(true);
+    const waited = gallery.waiting;
+    gallery.waiting = null;
+    return waited === "newer" ? listNewer() : refreshGallery(false);
   });
 }
 
@@ -1375,8 +1405,34 @@ async function refreshGallery(fresh) {
   if (!snapshots) return;
   const cut = snapshots.length > limit;  // So many came in that the oldest shown fall off.
   gallery.snapshots = snapshots.slice(0, limit);
+  gallery.gone.clear();  // Listed as the server has them: none deleted among them.
   if (cut || !down) gallery.oldest = gallery.snapshots.at(-1) || null;
   gallery.more = down || cut;
+  renderGallery();
+}
+
+/* The snapshots taken after the newest shown (its time, then the ids after it: the
+   listing's cursor), on top of those shown. */
+async function listNewer() {
+  const gallery = state.gallery;
+  const newest = gallery.snapshots[0];
+  if (!newest) return refreshGallery(false);
+  const params = new URLSearchParams(gallery.filters);
+  endAt(params, "since", newest, newest.id + 1);
+  params.set("limit", String(GALLERY_PAGE + 1));  // One more tells whether some were left out.
+  const newer = await listGallery(params);
+  if (!newer) return;
+  // More than a page at once: those left out would be a hole below them. As far down as shown.
+  if (newer.length > GALLERY_PAGE) return refreshGallery(false);
+  const shown = new Set(gallery.snapshots.map((s) => s.id));
+  const added = newer.filter((s) => !shown.has(s.id));
+  if (!added.length) return;
+  const snapshots = added.concat(gallery.snapshots);
+  gallery.snapshots = snapshots.slice(0, GALLERY_MAX);
+  if (snapshots.length > GALLERY_MAX) {  // The oldest shown fall off.
+    gallery.oldest = gallery.snapshots.at(-1);
+    gallery.more = true;
+  }
   renderGallery();
 }
 
@@ -1402,38 +1458,88 @@ async function showOlderPage() {
   renderGallery();
 }
 
+const GONE_NOTE = '<div class="gone-note">snapshot deleted</div>';
+
+function thumbHtml(snap, selected) {
+  const gone = state.gallery.gone.has(snap.id);
+  const picture = gone ? GONE_NOTE : `<label><input type="checkbox" value="${snap.id}" ${selected ? "checked" : ""}>
+      <img loading="lazy" src="${snap.url}" alt="snapshot ${snap.id}"></label>`;
+  return `<figure class="thumb${gone ? " gone" : ""}" data-id="${snap.id}">${picture}
+      <figcaption>${escapeHtml(cameraName(snap.camera_id))} · ${fmtDate(snap.ts)} · ${snap.kind}</figcaption>
+    </figure>`;
+}
+
 function renderGallery() {
-  const { snapshots, more, filters } = state.gallery;
+  const { snapshots, more } = state.gallery;
   for (const snap of snapshots) noteCamera(snap.camera_id);
   const selected = new Set($$("#thumbs input:checked").map((i) => i.value));
-  $("#thumbs").innerHTML = snapshots.map((s) => `<figure class="thumb">
-      <label><input type="checkbox" value="${s.id}" ${selected.has(String(s.id)) ? "checked" : ""}>
-      <img loading="lazy" src="${s.url}" alt="snapshot ${s.id}"></label>
-      <figcaption>${escapeHtml(cameraName(s.camera_id))} · ${fmtDate(s.ts)} · ${s.kind}</figcaption>
-    </figure>`).join("") || `<p class="muted">${more ? "None left here: older ones are below."
-      : "No snapshots yet: Activate a camera."}</p>`;
+  $("#thumbs").innerHTML = snapshots.map((s) => thumbHtml(s, selected.has(String(s.id)))).join("")
+    || `<p class="muted">${more ? "None left here: older ones are below." : "No snapshots yet: Activate a camera."}</p>`;
+  renderGalleryTotals();
+}
+
+/* The count, "Show older" and "Download all shown": of the snapshots shown, those not
+   deleted elsewhere (the zip asks for the run from the newest to the oldest of them). */
+function renderGalleryTotals() {
+  const { snapshots, more, filters, gone } = state.gallery;
+  const kept = snapshots.filter((s) => !gone.has(s.id));
   const full = snapshots.length >= GALLERY_MAX;  // As many as a page holds: no more below.
   $("#gallery-more").hidden = !more || full;
   $("#gallery-count").textContent = !snapshots.length ? ""
-    : `${plural(snapshots.length, "snapshot")} shown, newest first`
+    : `${plural(kept.length, "snapshot")} shown, newest first`
       + `${!more ? "" : full ? ": for older ones, filter by time" : ", older ones below"}`;
   const zip = $("#zip-all");
   const params = new URLSearchParams(filters);
-  if (snapshots.length) {
-    endAt(params, "until", snapshots[0]);
-    endAt(params, "since", snapshots[snapshots.length - 1]);
-    params.set("limit", String(snapshots.length));
+  if (kept.length) {
+    endAt(params, "until", kept[0]);
+    endAt(params, "since", kept[kept.length - 1]);
+    params.set("limit", String(kept.length));
   }
-  zip.href = snapshots.length ? `/api/snapshots.zip?${params}` : "#";
-  zip.classList.toggle("disabled", !snapshots.length);
-  zip.textContent = `Download all ${snapshots.length} shown (.zip)`;
+  zip.href = kept.length ? `/api/snapshots.zip?${params}` : "#";
+  zip.classList.toggle("disabled", !kept.length);
+  zip.textContent = `Download all ${kept.length} shown (.zip)`;
   updateZipSelected();
+}
+
+/* A snapshot's picture that does not load (in the gallery, the alarm list or a toast)
+   shows no broken-picture icon. The server, asked again, tells whether the snapshot has
+   been deleted meanwhile (by another tab, a bulk delete, pruning); then the place says so,
+   and the gallery's tile stays, greyed, out of the selection and the zips. Any other
+   failure (the server unreachable) leaves the place blank until it is drawn again. */
+document.addEventListener("error", async (event) => {
+  const img = event.target;
+  if (!(img instanceof HTMLImageElement) || !img.closest("#thumbs, #alarm-list, #toasts")) return;
+  img.classList.add("broken");
+  const tile = img.closest(".thumb");
+  const item = img.closest("#alarm-list li");
+  if (!(await snapshotDeleted(img.getAttribute("src")))) return;
+  if (tile) markGone(Number(tile.dataset.id));
+  else if (item) setNoPicture(item, "snapshot deleted");
+  else img.remove();  // A toast's: its words say enough.
+}, true);  // An error event does not bubble: caught on its way down.
+
+async function snapshotDeleted(url) {
+  try {
+    return (await fetch(url, { cache: "no-store" })).status === 404;
+  } catch (_) {
+    return false;
+  }
+}
+
+function markGone(id) {
+  state.gallery.gone.add(id);
+  const tile = $(`#thumbs .thumb[data-id="${id}"]`);  // The gallery may have been drawn again.
+  if (!tile) return;
+  tile.classList.add("gone");
+  const label = $("label", tile);  // With its checkbox: no longer to select.
+  if (label) label.outerHTML = GONE_NOTE;
+  renderGalleryTotals();
 }
 
 let galleryTimer = null;
 function scheduleGallery() {
   clearTimeout(galleryTimer);
-  galleryTimer = setTimeout(loadGallery, 1000);
+  galleryTimer = setTimeout(() => loadGallery("newer"), 1000);
 }
 
 function selectedIds() {
@@ -1457,7 +1563,7 @@ $("#select-all").addEventListener("change", (e) => {
   updateZipSelected();
 });
 $("#zip-selected").addEventListener("click", (e) => { if (!selectedIds().length) e.preventDefault(); });
-$("#zip-all").addEventListener("click", (e) => { if (!state.gallery.snapshots.length) e.preventDefault(); });
+$("#zip-all").addEventListener("click", (e) => { if (e.currentTarget.classList.contains("disabled")) e.preventDefault(); });
 $("#gallery-more").addEventListener("click", showOlder);
 $("#delete-selected").addEventListener("click", async () => {
   const ids = selectedIds();
@@ -1466,17 +1572,24 @@ $("#delete-selected").addEventListener("click", async () => {
     noteDeletedSnapshots((await api("POST", "/api/snapshots/delete", { ids })).deleted);
   } catch (error) {
     toast(escapeHtml(error.message), "error");
+    return;
   }
+  // Off the gallery, all of them: those the server did not delete now were gone already.
+  // After any listing under way, which may still have them.
+  const deleted = new Set(ids);
   $("#select-all").checked = false;
-  loadGallery();
+  queueGallery(() => {
+    state.gallery.snapshots = state.gallery.snapshots.filter((s) => !deleted.has(s.id));
+    renderGallery();
+  });
 });
-$("#gallery-filter").addEventListener("submit", (e) => { e.preventDefault(); loadGallery(true); });
+$("#gallery-filter").addEventListener("submit", (e) => { e.preventDefault(); loadGallery("fresh"); });
 
 /* ---------- Start ---------- */
 
 renderMute();
 loadCameras().then(() => {
-  loadGallery();
+  loadGallery("fresh");
   loadRecentAlarms();
 });
 loadAnalyses();

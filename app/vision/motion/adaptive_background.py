@@ -25,8 +25,11 @@ A running-average background (the classic of Motion and of OpenCV's
   if the background moved by it explains the change, the whole model moves
   with the scene and the frame is compared again, so what moves in it is
   still found and the scene is not reported as motion. A shaking camera is
-  followed frame by frame. A slow pan, a turn about the lens axis or a zoom
-  is not followed (stale-region absorption handles them), nor is a shift that
+  followed frame by frame, and one that turns (a pan) every few frames: the
+  change is sudden against the calm of the last half second, and once the view
+  has been followed, a little change is enough to seek it again. A very slow
+  pan, a turn about the lens axis or a zoom is not followed (stale-region
+  absorption handles them), nor is a shift that
   shows in too few parts of the view to tell (``view_shift``): on a plain wall,
   an object's own move explains the change as well as a moved view would.
 * **A second background mode** — each pixel keeps an alternate value beside
@@ -129,19 +132,37 @@ LIGHT_WINDOW_LEAST = 0.05
 """The least (weighted) share of still pixels a window needs for its own fit."""
 
 CAMERA_MOVE_SHARE = 0.05
-"""The share of the frame that must turn "moving" at once (and ``SUDDEN_GROWTH`` times
-last frame's) for the camera to be suspected of having moved: a knock of a pixel or two
-changes little more than the scene's edges, a tenth of a street scene."""
+"""The share of the frame that must turn "moving" (and ``SUDDEN_GROWTH`` times the least
+of the last ``CALM_FRAMES``) for the camera to be suspected of having moved: a knock of a
+pixel or two changes little more than the scene's edges, a tenth of a street scene."""
+
+SUDDEN_GROWTH = 2.0
+"""How many times the least raw motion of the last ``CALM_FRAMES`` a frame must have for
+the change to count as sudden (with ``CAMERA_MOVE_SHARE``): what a knock does, and a
+camera turning does within a few frames, where a busy street's moving share stays put."""
+
+CALM_FRAMES = 12
+"""Frames (at 25 fps) back to the calm that a sudden change is measured against. Against
+last frame's alone, a pan of 2.4 px a frame was never followed: the change it makes
+grows frame by frame, never twice as much as the frame before's. Against every frame's
+(no growth asked), the view was sought on a fifth of a busy street's frames."""
+
+FOLLOWING_SHARE = 0.01
+"""The share of the frame that, for ``CALM_FRAMES`` after the view was followed, must turn
+"moving" (of a sudden or not) for it to be sought again: the camera may be turning, and
+the change it makes grows from nothing after each follow. With ``CAMERA_MOVE_SHARE`` and
+the sudden growth asked, a pan of 2.4 px a frame was followed every 8 to 10 frames, its
+edges reported as objects in between, and a strip left for seconds after it stopped."""
+
+SEARCH_BACKOFF = 6
+"""Frames (at 25 fps) after a search for a moved view that found none (something big
+moving, not the camera) before the next: a busy street's big objects asked for one on 15%
+of its frames, 0.7 ms each."""
 
 LEARNING_CAMERA_MOVE_SHARE = 0.2
 """``CAMERA_MOVE_SHARE`` while the scene is being learned: the model is then little more
 than the first frame, which much of the view may differ from for other reasons (what
 was in view then, leaves whose sway is not known yet)."""
-
-SUDDEN_GROWTH = 2.0
-"""How many times last frame's raw motion a frame must have for the change to count as
-sudden (with ``CAMERA_MOVE_SHARE``): what a knock does, where an object coming closer
-grows frame by frame."""
 
 CAMERA_MATCH_WIDTH = 320
 """Pixels: a frame N >= 2 times this wide is reduced N times to seek the shift (the
@@ -231,8 +252,12 @@ class AdaptiveBackground(MotionMethod):
         (``kernels.STATE``)."""
         self._raw_plane = kernels.RAW[0]
         """The state's plane that holds the previous frame's raw motion."""
-        self._previous_raw = 0
-        """Pixels of that plane that are set."""
+        self._calm: deque[int] = deque(maxlen=self.calm_frames)
+        """Pixels of raw motion in each of the last ``calm_frames`` frames."""
+        self._next_search = 0
+        """The first frame on which a moved view may be sought again (``search_backoff``)."""
+        self._following_until = 0
+        """The frame until which the view may still be moving (``FOLLOWING_SHARE``)."""
         self._rings: np.ndarray | None = None
         self._gains: np.ndarray | None = None
         self._recent: deque[GrayImage] = deque(maxlen=self.check_every)
@@ -253,6 +278,8 @@ class AdaptiveBackground(MotionMethod):
         self._scale_times(fps)
         if self._recent.maxlen != self.check_every:
             self._recent = deque(self._recent, maxlen=self.check_every)
+        if self._calm.maxlen != self.calm_frames:
+            self._calm = deque(self._calm, maxlen=self.calm_frames)
 
     def _scale_times(self, fps: float) -> None:
         absorb_after, relit_after, check_every, settle_frames = self._times_in_frames
@@ -260,6 +287,8 @@ class AdaptiveBackground(MotionMethod):
         self.relit_after = in_frames(relit_after, fps)
         self.check_every = in_frames(check_every, fps)
         self.settle_frames = min(in_frames(settle_frames, fps), 255) if settle_frames else 0
+        self.calm_frames = in_frames(CALM_FRAMES, fps)
+        self.search_backoff = in_frames(SEARCH_BACKOFF, fps)
 
     # The model's planes that the steps in Python work on.
 
@@ -355,10 +384,15 @@ class AdaptiveBackground(MotionMethod):
         self._set_threshold(threshold, rates, settings)
         bounds = np.empty(kernels.BOUNDS)
         bounds[kernels.GAIN_LIMIT] = GAIN_INLIERS * threshold
-        # Compared only where the frame may be a light switch or a knock: the first
-        # changes most of the view, the second much of it at once.
+        # Compared only where the frame may be a light switch or the camera moved: the
+        # first changes most of the view, the second much of it, of a sudden.
         share = LEARNING_CAMERA_MOVE_SHARE if learning else CAMERA_MOVE_SHARE
-        sudden = max(share * gray.size, SUDDEN_GROWTH * self._previous_raw)
+        if self._frame_index < self._next_search:
+            sudden = math.inf  # A search just found the view where it was.
+        elif self._frame_index < self._following_until:
+            sudden = FOLLOWING_SHARE * gray.size
+        else:
+            sudden = max(share * gray.size, SUDDEN_GROWTH * min(self._calm, default=0))
         bounds[kernels.COMPARE_ONLY_ABOVE] = (
             min(self.light_switch_fraction * gray.size, sudden) if fast else -1.0
         )
@@ -395,12 +429,18 @@ class AdaptiveBackground(MotionMethod):
                 self._relearn_after_light_switch(gray, threshold)
                 return MotionResult(np.zeros_like(gray), difference, threshold, global_change=True)
             # A sudden change over much of the view that is no light: the camera may
-            # have been knocked (or something big stepped in front of it: motion).
+            # have been knocked or be turning (or something big stepped in front of it:
+            # motion).
             if not followed and changed > sudden:
                 shift = self._scene_shift(gray, threshold)
                 if shift is not None:
                     self._follow_scene(gray, threshold, *shift)
+                    self._following_until = self._frame_index + self.calm_frames
                     return replace(self._step(gray, followed=True), global_change=True)
+                if self._frame_index >= self._following_until:
+                    # Not while following: a view that moved less than a step since is
+                    # sought again on the next frame.
+                    self._next_search = self._frame_index + self.search_backoff
             settings[kernels.LEARN_ONLY] = True
             _, _, moving = kernels.step(*arguments)
         # After the light-switch test: the change a light switch makes is not noise, and
@@ -417,7 +457,7 @@ class AdaptiveBackground(MotionMethod):
         self._recent.append(gray)
         self._previous_mask = mask
         self._raw_plane = raw_plane
-        self._previous_raw = changed
+        self._calm.append(changed)
         self._previous_moving = moving
         return MotionResult(mask, difference, threshold)
 
@@ -460,7 +500,8 @@ class AdaptiveBackground(MotionMethod):
         self._state = np.zeros((kernels.STATE, *gray.shape), np.uint8)
         self._state[kernels.SETTLED] = 255
         self._raw_plane = kernels.RAW[1]
-        self._previous_raw = 0
+        self._calm.clear()
+        self._next_search = self._following_until = 0
         self._rings = kernels.ring_rows(gray.shape[1])
         self._gains = kernels.row_gains(gray.shape[0])
         self._still_frames = np.zeros(gray.shape, np.uint16)
@@ -528,7 +569,7 @@ class AdaptiveBackground(MotionMethod):
         background best matches the frame, provided that the background moved that far
         explains the change (``view_shift.shift_explains``). None where no shift does:
         something big stepped into view. A wide frame is matched at a reduced size
-        (``CAMERA_MATCH_WIDTH``)."""
+        (``CAMERA_MATCH_WIDTH``), and first at half that (``_matched_shift``)."""
         height, width = gray.shape
         frame = gray.astype(np.float32)
         reduce = max(1, width // CAMERA_MATCH_WIDTH)
@@ -538,11 +579,7 @@ class AdaptiveBackground(MotionMethod):
         reach = max(2, round(VIEW_SHIFT_REACH * size[0]))
         if min(size) <= 4 * reach:
             return None
-        # Where the frame's middle fits in the background: a squared difference per shift.
-        misfit = cv2.matchTemplate(background, picture[reach:-reach, reach:-reach], cv2.TM_SQDIFF)
-        _, _, (left, top), _ = cv2.minMaxLoc(misfit)
-        dx = reduce * (reach - (left + _vertex_offset(misfit[top, left - 1 : left + 2])))
-        dy = reduce * (reach - (top + _vertex_offset(misfit[top - 1 : top + 2, left])))
+        dx, dy = (reduce * shift for shift in _matched_shift(background, picture, reach))
         if math.hypot(dx, dy) < CAMERA_MOVE_LEAST:
             return None
         # Checked on a grid, as the gain is measured.
@@ -624,18 +661,83 @@ class AdaptiveBackground(MotionMethod):
         self._gains = None
         self._recent.clear()
         self._previous_mask = None
-        self._previous_raw = 0
         self._previous_moving = 0
+        self._calm.clear()
+        self._next_search = self._following_until = 0
         self._still_frames = None
         self._frame_index = 0
         self._scene = None
         self._started_from_scene = False
 
 
+def _matched_shift(background: FloatImage, picture: FloatImage, reach: int) -> tuple[float, float]:
+    """The shift (x, y pixels, to a fraction of one), up to ``reach`` each way, by which
+    ``background`` best matches ``picture``'s middle (all but ``reach`` pixels of each
+    edge), by the least squared difference: sought over every shift on both halved, then
+    from twice the shift found there down the slope at full size. One search over every
+    shift at full size took 1.5 ms at 320x240, the halved one and the descent 0.6 (means
+    over a busy street's frames): the view is sought on every frame where much of it
+    changes of a sudden (``CALM_FRAMES``)."""
+    height, width = picture.shape
+    half, half_reach = (width // 2, height // 2), reach // 2
+    if half_reach < 2 or min(half) <= 4 * half_reach:
+        return _searched_shift(background, picture, reach)
+    coarse = _searched_shift(
+        cv2.resize(background, half, interpolation=cv2.INTER_AREA),
+        cv2.resize(picture, half, interpolation=cv2.INTER_AREA),
+        half_reach,
+    )
+    return _descended_shift(background, picture, reach, round(2 * coarse[0]), round(2 * coarse[1]))
+
+
+def _searched_shift(background: FloatImage, picture: FloatImage, reach: int) -> tuple[float, float]:
+    """``_matched_shift`` over every shift up to ``reach``, in one matching."""
+    # Where the frame's middle fits in the background: a squared difference per shift.
+    misfit = cv2.matchTemplate(background, picture[reach:-reach, reach:-reach], cv2.TM_SQDIFF)
+    _, _, (left, top), _ = cv2.minMaxLoc(misfit)
+    dx = reach - (left + _vertex_offset(misfit[top, left - 1 : left + 2]))
+    dy = reach - (top + _vertex_offset(misfit[top - 1 : top + 2, left]))
+    return dx, dy
+
+
+def _descended_shift(
+    background: FloatImage, picture: FloatImage, reach: int, dx: int, dy: int
+) -> tuple[float, float]:
+    """``_matched_shift`` from the whole-pixel shift (dx, dy): to the neighbouring shift
+    that fits better while one does, then to a fraction of a pixel between neighbours."""
+    template = picture[reach:-reach, reach:-reach]
+    rows, cols = template.shape
+    misfits: dict[tuple[int, int], float] = {}
+
+    def misfit(x: int, y: int) -> float:
+        if max(abs(x), abs(y)) > reach:
+            return math.inf
+        if (x, y) not in misfits:
+            # The background moved (x, y) under the frame: its corner reach - shift in.
+            part = background[reach - y : reach - y + rows, reach - x : reach - x + cols]
+            misfits[x, y] = cv2.norm(part, template, cv2.NORM_L2SQR)
+        return misfits[x, y]
+
+    dx, dy = (max(-reach, min(reach, shift)) for shift in (dx, dy))
+    while True:
+        best = min(
+            ((x, y) for x in (dx - 1, dx, dx + 1) for y in (dy - 1, dy, dy + 1)),
+            key=lambda shift: misfit(*shift),
+        )
+        if best == (dx, dy) or misfit(*best) >= misfit(dx, dy):
+            break
+        dx, dy = best
+    # Neighbours in the order of the background's corner (reach - shift), as matching has them.
+    across = np.array([misfit(dx + 1, dy), misfit(dx, dy), misfit(dx - 1, dy)])
+    down = np.array([misfit(dx, dy + 1), misfit(dx, dy), misfit(dx, dy - 1)])
+    return dx - _vertex_offset(across), dy - _vertex_offset(down)
+
+
 def _vertex_offset(values: np.ndarray) -> float:
     """Where, from the middle one (-0.5..0.5), the parabola through three values
-    turns: a minimum's place between pixels. 0 at an edge of the search."""
-    if values.size != 3:
+    turns: a minimum's place between pixels. 0 at an edge of the search (fewer values,
+    or one past the reach: infinite)."""
+    if values.size != 3 or not np.isfinite(values).all():
         return 0.0
     before, middle, after = (float(v) for v in values)
     curvature = before - 2.0 * middle + after

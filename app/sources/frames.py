@@ -13,8 +13,9 @@ Both decoders are libjpeg-turbo, pixel for pixel alike. Grey goes through
 OpenCV, whose scaled decoding is as fast as any; colour through simplejpeg
 (TurboJPEG's own colour conversion), which took 0.75 ms where OpenCV's
 ``imdecode`` took 1.14 at 640x480, and 4.4 where it took 6.0 at 1920x1080
-(best of 15 here). Damaged data decodes as far as it goes in both, as libjpeg
-leaves it.
+(best of 15 here). A JPEG that libjpeg warns about (damaged data, a cut-off
+frame, an odd header) is left to OpenCV, which decides as for the grey: what
+it decodes (as far as it goes), or a frame error.
 """
 
 from __future__ import annotations
@@ -95,11 +96,10 @@ class JpegFrame(SourceFrame):
         if self._image is None:
             assert self.jpeg is not None
             try:
-                # Not strict: a frame with damaged data decodes as far as it goes, as
-                # OpenCV's grey of it does (libjpeg warns, and fills the rest).
-                picture = simplejpeg.decode_jpeg(self.jpeg, colorspace="BGR", strict=False)
+                # Strict: on any warning of libjpeg's, OpenCV's answer, as the grey's.
+                picture = simplejpeg.decode_jpeg(self.jpeg, colorspace="BGR", strict=True)
             except ValueError:
-                raise FrameError(UNDECODABLE) from None
+                picture = self._decode(cv2.IMREAD_COLOR)
             self._image = cast(Image, picture)
         return self._image
 
@@ -114,7 +114,7 @@ class JpegFrame(SourceFrame):
         return self._gray[1]
 
     def _decode(self, flag: int) -> np.ndarray:
-        """Grey, through OpenCV (``flag``)."""
+        """Through OpenCV (``flag``)."""
         assert self.jpeg is not None
         # As its header says (``size``): an EXIF orientation would turn the picture, not
         # the header, and boxes found on one would be drawn on the other.

@@ -5,6 +5,7 @@ from __future__ import annotations
 import contextlib
 import shutil
 import subprocess
+from collections.abc import Callable
 from pathlib import Path
 
 import cv2
@@ -127,18 +128,42 @@ def test_the_colour_picture_is_opencv_s_pixel_for_pixel(params: list[int], grey_
     np.testing.assert_array_equal(image, reference)
 
 
-def test_a_jpeg_with_damaged_data_shows_what_decodes_as_opencv_does() -> None:
-    """A camera's bit errors spoil part of a frame, not all of it: the picture is what
-    libjpeg makes of it (the grey of detection is too), not a frame error."""
-    data = bytearray(encoded(SCENE.frame(3)))
-    scan = data.index(b"\xff\xda")
-    for at in (scan + 400, scan + 2000, len(data) - 300):
-        data[at] ^= 0x10
-    damaged = bytes(data)
-    reference = opencv_colour(damaged)
+def damaged(data: bytes) -> bytes:
+    """``data`` with three bits flipped in its scan: a camera's bit errors."""
+    flipped = bytearray(data)
+    scan = flipped.index(b"\xff\xda")
+    for at in (scan + 400, scan + 2000, len(flipped) - 300):
+        flipped[at] ^= 0x10
+    return bytes(flipped)
+
+
+def jfif_2_01(data: bytes) -> bytes:
+    """``data`` claiming JFIF 2.01, a version libjpeg warns of and decodes."""
+    assert data[6:11] == b"JFIF\x00"
+    return data[:11] + b"\x02" + data[12:]
+
+
+@pytest.mark.parametrize("odd", [damaged, jfif_2_01], ids=["bit errors", "JFIF 2.01"])
+def test_a_jpeg_that_libjpeg_warns_about_gives_the_picture_opencv_gives(
+    odd: Callable[[bytes], bytes],
+) -> None:
+    """Bit errors spoil part of a frame, not all of it; an odd header none of it: the
+    picture is what libjpeg makes of it, as the grey of detection is, not a frame error."""
+    data = odd(encoded(SCENE.frame(3)))
+    reference = opencv_colour(data)
     assert reference is not None  # OpenCV decodes it, with a warning.
-    frame = JpegFrame(damaged)
-    np.testing.assert_array_equal(frame.image(), reference)
+    np.testing.assert_array_equal(JpegFrame(data).image(), reference)
+    assert JpegFrame(data).gray(320).shape == (240, 320)
+
+
+def test_a_cut_off_jpeg_is_a_frame_error_in_colour_as_in_grey() -> None:
+    data = encoded(SCENE.frame(3))
+    cut = data[: len(data) * 2 // 3]
+    assert opencv_colour(cut) is None
+    with pytest.raises(FrameError, match="does not decode"):
+        JpegFrame(cut).image()
+    with pytest.raises(FrameError, match="does not decode"):
+        JpegFrame(cut).gray(320)
 
 
 @pytest.mark.skipif(shutil.which("ffmpeg") is None, reason="needs the ffmpeg binary for H.264")

@@ -389,7 +389,7 @@ class AdaptiveBackground(MotionMethod):
         share = LEARNING_CAMERA_MOVE_SHARE if learning else CAMERA_MOVE_SHARE
         if self._frame_index < self._next_search:
             sudden = math.inf  # A search just found the view where it was.
-        elif self._frame_index < self._following_until:
+        elif self._frame_index < self._following_until and not learning:
             sudden = FOLLOWING_SHARE * gray.size
         else:
             sudden = max(share * gray.size, SUDDEN_GROWTH * min(self._calm, default=0))
@@ -435,12 +435,13 @@ class AdaptiveBackground(MotionMethod):
                 shift = self._scene_shift(gray, threshold)
                 if shift is not None:
                     self._follow_scene(gray, threshold, *shift)
-                    self._following_until = self._frame_index + self.calm_frames
+                    # The frames after this one.
+                    self._following_until = self._frame_index + 1 + self.calm_frames
                     return replace(self._step(gray, followed=True), global_change=True)
                 if self._frame_index >= self._following_until:
                     # Not while following: a view that moved less than a step since is
                     # sought again on the next frame.
-                    self._next_search = self._frame_index + self.search_backoff
+                    self._next_search = self._frame_index + 1 + self.search_backoff
             settings[kernels.LEARN_ONLY] = True
             _, _, moving = kernels.step(*arguments)
         # After the light-switch test: the change a light switch makes is not noise, and

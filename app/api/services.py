@@ -25,6 +25,10 @@ log = logging.getLogger("vigil")
 
 MB = 1024 * 1024
 
+DELETED_IDS_PER_MESSAGE = 1000
+"""The most ids one ``snapshots_deleted`` message names: a large delete or prune is told
+in several, each of a bounded size."""
+
 
 class Services:
     def __init__(self, settings: Settings) -> None:
@@ -66,7 +70,9 @@ class Services:
         closed = len(self.db.close_open_events())  # No worker runs yet: the last run's.
         if closed:
             log.info("closed %d event(s) left open when the server last stopped", closed)
-        self._snapshots = SnapshotStore(settings.snapshots_dir)
+        self._snapshots = SnapshotStore(
+            settings.snapshots_dir, on_deleted=self.announce_deleted_snapshots
+        )
         self._cameras = CameraManager(settings, self.bus)
         self._analyses = AnalysisManager(
             self.db,
@@ -112,6 +118,13 @@ class Services:
             except Exception:
                 log.exception("retention pass failed")
             self._stopping.wait(settings.retention_interval_s)
+
+    def announce_deleted_snapshots(self, ids: list[int]) -> None:
+        """Tell every page (``snapshots_deleted`` on /ws) which snapshots have just been
+        deleted, so none keeps showing one its browser already loaded."""
+        for start in range(0, len(ids), DELETED_IDS_PER_MESSAGE):
+            chunk = ids[start : start + DELETED_IDS_PER_MESSAGE]
+            self.bus.publish({"type": "snapshots_deleted", "ids": chunk})
 
     def storage(self) -> dict[str, Any]:
         """Free space, the snapshots' total and cap, and why snapshots fail (None: they don't)."""

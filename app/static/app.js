@@ -906,7 +906,8 @@ function setNoPicture(item, text, title = "") {
   $(".shot", item).innerHTML = `<span class="muted" title="${escapeHtml(title)}">${escapeHtml(text)}</span>`;
 }
 
-/* Snapshots this page deleted: the alarms that showed them say so. */
+/* Snapshots deleted (by this page, or elsewhere as /ws tells): the alarms that showed them
+   say so, and the toasts that show them lose the picture (their words say enough). */
 function noteDeletedSnapshots(ids) {
   const urls = new Set(ids.map((id) => `/api/snapshots/${id}.jpg`));
   for (const item of state.alarmItems.values()) {
@@ -915,6 +916,7 @@ function noteDeletedSnapshots(ids) {
     const difference = $(".links a", item);
     if (difference && urls.has(difference.getAttribute("href"))) difference.remove();
   }
+  for (const img of $$("#toasts img")) if (urls.has(img.getAttribute("src"))) img.remove();
 }
 
 function setAlarmEnded(item, durationS, maxArea) {
@@ -1079,6 +1081,7 @@ function connect() {
       case "alarm": onAlarm(message); break;
       case "motion_end": onMotionEnd(message); break;
       case "progress": onProgress(message); break;
+      case "snapshots_deleted": onSnapshotsDeleted(message.ids); break;
       case "status":
         if (message.camera_id !== undefined) onCameraStatus(message);
         else if (message.analysis_id !== undefined) refreshAnalysis(message.analysis_id);
@@ -1513,7 +1516,7 @@ document.addEventListener("error", async (event) => {
   const tile = img.closest(".thumb");
   const item = img.closest("#alarm-list li");
   if (!(await snapshotDeleted(img.getAttribute("src")))) return;
-  if (tile) markGone(Number(tile.dataset.id));
+  if (tile) markGone([Number(tile.dataset.id)]);
   else if (item) setNoPicture(item, "snapshot deleted");
   else img.remove();  // A toast's: its words say enough.
 }, true);  // An error event does not bubble: caught on its way down.
@@ -1526,14 +1529,30 @@ async function snapshotDeleted(url) {
   }
 }
 
-function markGone(id) {
-  state.gallery.gone.add(id);
-  const tile = $(`#thumbs .thumb[data-id="${id}"]`);  // The gallery may have been drawn again.
-  if (!tile) return;
-  tile.classList.add("gone");
-  const label = $("label", tile);  // With its checkbox: no longer to select.
-  if (label) label.outerHTML = GONE_NOTE;
+/* Greys the tiles of those snapshots shown that have been deleted elsewhere: in place, so
+   no tile moves under the pointer, but out of the count, the selection and the zips. */
+function markGone(ids) {
+  const { snapshots, gone } = state.gallery;
+  const deleted = new Set(ids);
+  const shown = snapshots.filter((s) => deleted.has(s.id) && !gone.has(s.id));
+  if (!shown.length) return;
+  for (const { id } of shown) {
+    gone.add(id);
+    const tile = $(`#thumbs .thumb[data-id="${id}"]`);  // The gallery may have been drawn again.
+    if (!tile) continue;
+    tile.classList.add("gone");
+    const label = $("label", tile);  // With its checkbox: no longer to select.
+    if (label) label.outerHTML = GONE_NOTE;
+  }
   renderGalleryTotals();
+}
+
+/* Snapshots deleted on the server, by any page or by pruning: none shows here any more,
+   even one whose picture the browser has already loaded. The gallery's after any listing
+   under way, which may have been answered before they went. */
+function onSnapshotsDeleted(ids) {
+  noteDeletedSnapshots(ids);
+  queueGallery(() => markGone(ids));
 }
 
 let galleryTimer = null;

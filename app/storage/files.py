@@ -7,9 +7,9 @@ import errno
 import threading
 import time
 import zipfile
-from collections.abc import Iterable, Iterator
+from collections.abc import Callable, Iterable, Iterator
 from pathlib import Path
-from typing import IO, TYPE_CHECKING, cast
+from typing import IO, TYPE_CHECKING, Any, cast
 
 from app.core.atomic import write_atomic
 
@@ -25,6 +25,10 @@ WRITE_ERRORS = {
     errno.EPERM: "permission denied",
 }
 
+SnapshotsDeleted = Callable[[list[int]], None]
+"""Is told the ids of snapshots just deleted: the server gives what tells every page (this
+module knows no web)."""
+
 
 def describe_write_error(exc: OSError) -> str:
     """A short reason for people (no paths: /api/health answers without a password)."""
@@ -36,11 +40,13 @@ class SnapshotStore:
     """JPEG files under ``root/<camera id>/<day>/``; the database keeps paths relative to root.
 
     It remembers, per camera, why the last write failed until one succeeds, so a
-    burst of failures is reported once and its end is noticed.
+    burst of failures is reported once and its end is noticed. ``on_deleted`` is told of
+    every snapshot deleted through it, by hand or by retention (a batch at a time) alike.
     """
 
-    def __init__(self, root: Path) -> None:
+    def __init__(self, root: Path, on_deleted: SnapshotsDeleted | None = None) -> None:
         self.root = root
+        self.on_deleted = on_deleted
         root.mkdir(parents=True, exist_ok=True)
         self._failures: dict[int, str] = {}
         self._lock = threading.Lock()
@@ -78,6 +84,20 @@ class SnapshotStore:
     def delete(self, relative: str) -> None:
         with contextlib.suppress(FileNotFoundError, NotADirectoryError):  # Already gone.
             self.path(relative).unlink()
+
+    def delete_snapshots(self, db: Database, ids: list[int]) -> list[dict[str, Any]]:
+        """Delete those of ``ids`` that exist and tell ``on_deleted`` their ids (nothing when
+        none did); returns their rows.
+
+        Rows go before files: a kill in between leaves a stray file, never a row without
+        its picture.
+        """
+        deleted = db.delete_snapshots(ids)
+        for row in deleted:
+            self.delete(row["path"])
+        if deleted and self.on_deleted is not None:
+            self.on_deleted([row["id"] for row in deleted])
+        return deleted
 
 
 class _Sink:
@@ -135,9 +155,7 @@ def prune(db: Database, store: SnapshotStore, before: float, batch: int = 1000) 
         rows = [r for r in rows if r["ts"] < before]
         if not rows:
             break
-        for row in db.delete_snapshots([r["id"] for r in rows]):
-            store.delete(row["path"])
-            removed += 1
+        removed += len(store.delete_snapshots(db, [r["id"] for r in rows]))
     db.delete_events_before(before)
     return removed
 
@@ -146,8 +164,7 @@ def prune_to_size(db: Database, store: SnapshotStore, max_bytes: int, batch: int
     """Delete the oldest snapshots until they total at most ``max_bytes``; returns how many.
 
     The running total in the database says when to stop, so a store under its cap
-    costs one query. An ended event goes with its last snapshot. Rows go before
-    files: a kill in between leaves a stray file, never a row without its picture.
+    costs one query. An ended event goes with its last snapshot.
     """
     removed = 0
     while (excess := db.snapshot_bytes() - max_bytes) > 0:
@@ -159,9 +176,7 @@ def prune_to_size(db: Database, store: SnapshotStore, max_bytes: int, batch: int
                 break
         if not chosen:
             break
-        deleted = db.delete_snapshots(chosen)
-        for row in deleted:
-            store.delete(row["path"])
+        deleted = store.delete_snapshots(db, chosen)
         removed += len(deleted)
         db.delete_events_without_snapshots(
             sorted({r["event_id"] for r in deleted if r["event_id"] is not None})

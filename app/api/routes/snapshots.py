@@ -144,9 +144,7 @@ class DeleteRequest(BaseModel):
 
 
 def _delete(svc: Services, ids: list[int]) -> dict[str, Any]:
-    rows = svc.database.delete_snapshots(ids)
-    for row in rows:
-        svc.snapshots.delete(row["path"])
+    rows = svc.snapshots.delete_snapshots(svc.database, ids)
     return {"deleted": [r["id"] for r in rows]}
 
 

@@ -1,4 +1,5 @@
-"""``/ws``: alarms, motion_end, progress and status messages, as JSON, as they happen."""
+"""``/ws``: alarm, motion_end, progress, snapshots_deleted and status messages, as JSON, as
+they happen."""
 
 from __future__ import annotations
 

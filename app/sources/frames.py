@@ -40,8 +40,6 @@ REDUCED_GRAY = {
 SOF_MARKERS = frozenset(range(0xC0, 0xD0)) - {0xC4, 0xC8, 0xCC}
 """JPEG start-of-frame markers (every coding process); C4, C8 and CC are not frames."""
 
-UNDECODABLE = "camera sent a JPEG that does not decode"
-
 MAX_SIDE = 16384
 """Larger than any camera's picture; a header claiming more is garbage, not a frame."""
 
@@ -121,7 +119,7 @@ class JpegFrame(SourceFrame):
         flag |= cv2.IMREAD_IGNORE_ORIENTATION
         picture = cv2.imdecode(np.frombuffer(self.jpeg, np.uint8), flag)
         if picture is None:
-            raise FrameError(UNDECODABLE)
+            raise FrameError("camera sent a JPEG that does not decode")
         return picture
 
 

@@ -1513,12 +1513,9 @@ document.addEventListener("error", async (event) => {
   const img = event.target;
   if (!(img instanceof HTMLImageElement) || !img.closest("#thumbs, #alarm-list, #toasts")) return;
   img.classList.add("broken");
-  const tile = img.closest(".thumb");
-  const item = img.closest("#alarm-list li");
-  if (!(await snapshotDeleted(img.getAttribute("src")))) return;
-  if (tile) markGone([Number(tile.dataset.id)]);
-  else if (item) setNoPicture(item, "snapshot deleted");
-  else img.remove();  // A toast's: its words say enough.
+  const url = img.getAttribute("src");
+  const id = Number(/^\/api\/snapshots\/(\d+)\.jpg$/.exec(url)?.[1]);
+  if (id && await snapshotDeleted(url)) onSnapshotsDeleted([id]);  // As /ws would tell.
 }, true);  // An error event does not bubble: caught on its way down.
 
 async function snapshotDeleted(url) {

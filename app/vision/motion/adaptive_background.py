@@ -663,8 +663,6 @@ class AdaptiveBackground(MotionMethod):
         self._recent.clear()
         self._previous_mask = None
         self._previous_moving = 0
-        self._calm.clear()
-        self._next_search = self._following_until = 0
         self._still_frames = None
         self._frame_index = 0
         self._scene = None
@@ -675,10 +673,10 @@ def _matched_shift(background: FloatImage, picture: FloatImage, reach: int) -> t
     """The shift (x, y pixels, to a fraction of one), up to ``reach`` each way, by which
     ``background`` best matches ``picture``'s middle (all but ``reach`` pixels of each
     edge), by the least squared difference: sought over every shift on both halved, then
-    from twice the shift found there down the slope at full size. One search over every
-    shift at full size took 1.5 ms at 320x240, the halved one and the descent 0.6 (means
-    over a busy street's frames): the view is sought on every frame where much of it
-    changes of a sudden (``CALM_FRAMES``)."""
+    from twice the shift found there down the slope at full size. One matching over every
+    shift took 1.4 ms at 320x240, the halved one and the descent 0.6 (a mean over a busy
+    street's frames): the view is sought on every frame where much of it changes of a
+    sudden (``CALM_FRAMES``)."""
     height, width = picture.shape
     half, half_reach = (width // 2, height // 2), reach // 2
     if half_reach < 2 or min(half) <= 4 * half_reach:

@@ -12,6 +12,8 @@ ENV PYTHONDONTWRITEBYTECODE=1 \
 WORKDIR /opt/vigil
 COPY pyproject.toml README.md ./
 COPY app ./app
+COPY static ./static
+COPY templates ./templates
 RUN pip install . \
     && useradd --system --create-home --uid 10001 vigil \
     && mkdir -p /data /opt/vigil/kernels \

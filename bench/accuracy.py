@@ -39,10 +39,10 @@ from _common import (
     run_pipeline,
 )
 
+from app.analysis.metrics import DEFAULT_IOU, ObjectCounts, PixelCounts, match_boxes
 from app.analysis.truth import Truth, load_truth
 from app.sources.files import open_input
 from app.sources.synthetic import Scene, in_view_scenes, standard_scenes
-from app.vision.metrics import DEFAULT_IOU, ObjectCounts, PixelCounts, match_boxes
 from app.vision.motion import DEFAULT_METHOD
 from app.vision.preprocess import to_size
 from app.vision.types import Image, Mask

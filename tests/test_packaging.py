@@ -3,6 +3,8 @@
 import shutil
 import subprocess
 import sys
+import tomllib
+import zipfile
 from pathlib import Path
 
 import pytest
@@ -40,3 +42,43 @@ def test_ci_script_installs_system_packages_then_runs_make_test():
     text = (ROOT / ".ci" / "run").read_text()
     assert "apt-get install" in text and "chromium" in text and "ffmpeg" in text
     assert text.index("apt-get install") < text.index("make test")
+
+
+def test_every_package_of_app_is_listed_for_the_wheel():
+    """pyproject.toml lists the packages (the page's files at the top of the repository
+    are mapped into app/): one left out would be missing from the wheel and the image."""
+    listed = set(
+        tomllib.loads((ROOT / "pyproject.toml").read_text())["tool"]["setuptools"]["packages"]
+    )
+    found = {
+        ".".join(path.relative_to(ROOT).parts)
+        for path in (ROOT / "app").rglob("*")
+        if path.is_dir() and any(path.glob("*.py"))
+    }
+    assert found <= listed, f"not listed in pyproject.toml: {sorted(found - listed)}"
+    assert {"app.static", "app.templates"} <= listed
+
+
+def test_the_wheel_carries_the_page(tmp_path):
+    """Built from the checkout, the wheel holds the page's files inside the package, where
+    an installed Vigil serves them from. (Built from a copy: a build leaves build/ behind.)"""
+    source = tmp_path / "source"
+    for name in ("app", "static", "templates"):
+        shutil.copytree(ROOT / name, source / name, ignore=shutil.ignore_patterns("__pycache__"))
+    for name in ("pyproject.toml", "README.md"):
+        shutil.copy(ROOT / name, source / name)
+    result = subprocess.run(
+        [sys.executable, "-m", "pip", "wheel", "--no-deps", "-q", "-w", str(tmp_path), str(source)],
+        capture_output=True,
+        text=True,
+    )
+    assert result.returncode == 0, result.stderr
+    (wheel,) = tmp_path.glob("vigil-*.whl")
+    names = set(zipfile.ZipFile(wheel).namelist())
+    page = {
+        f"app/{path.relative_to(ROOT)}"
+        for folder in ("static", "templates")
+        for path in (ROOT / folder).rglob("*")
+        if path.is_file()
+    }
+    assert page and page <= names, sorted(page - names)

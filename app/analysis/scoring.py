@@ -4,9 +4,9 @@ from __future__ import annotations
 
 from typing import Any
 
+from app.analysis.metrics import ObjectCounts, PixelCounts
 from app.analysis.truth import Truth
 from app.vision.detections import Box
-from app.vision.metrics import ObjectCounts, PixelCounts
 from app.vision.preprocess import to_size
 from app.vision.types import Mask
 

@@ -9,7 +9,6 @@ import signal
 import threading
 from collections.abc import AsyncIterator, Callable
 from contextlib import asynccontextmanager
-from pathlib import Path
 from typing import Any
 
 from fastapi import FastAPI
@@ -33,9 +32,7 @@ from app.api.routes.inputs import validation_error
 from app.api.security import Access, AccessControl, CrossOriginGuard, SecurityHeaders
 from app.api.services import Services
 from app.core.config import Settings
-
-PACKAGE_DIR = Path(vigil_package.__file__).resolve().parent
-STATIC_DIR = PACKAGE_DIR / "static"
+from app.core.paths import STATIC_DIR
 
 
 def create_app(settings: Settings | None = None) -> FastAPI:

@@ -10,9 +10,9 @@ import cv2
 import pytest
 
 from app.analysis import runner
+from app.analysis.metrics import ObjectCounts
 from app.analysis.runner import scan_background
 from app.sources.synthetic import Scene, in_view_scenes
-from app.vision.metrics import ObjectCounts
 from app.vision.pipeline import Pipeline, PipelineConfig
 from app.vision.scene_background import LEAST_SAMPLES
 from tests.analysis.walker import vigil

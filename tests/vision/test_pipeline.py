@@ -2,8 +2,8 @@ import cv2
 import numpy as np
 import pytest
 
+from app.analysis.metrics import ObjectCounts
 from app.sources.synthetic import MovingObject, Scene
-from app.vision.metrics import ObjectCounts
 from app.vision.pipeline import Pipeline, PipelineConfig
 
 SCENE = Scene(

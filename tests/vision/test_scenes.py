@@ -7,8 +7,8 @@ import statistics
 import numpy as np
 import pytest
 
+from app.analysis.metrics import ObjectCounts, match_boxes
 from app.sources.synthetic import MovingObject, Scene, standard_scenes
-from app.vision.metrics import ObjectCounts, match_boxes
 from app.vision.pipeline import Pipeline, PipelineConfig
 from tests.conftest import lamplight, lit
 

@@ -2,8 +2,6 @@
 
 from __future__ import annotations
 
-from pathlib import Path
-
 from fastapi import APIRouter, Request
 from fastapi.responses import FileResponse, HTMLResponse
 from fastapi.templating import Jinja2Templates
@@ -11,12 +9,12 @@ from fastapi.templating import Jinja2Templates
 import app as vigil_package
 from app.api.routes.inputs import MAX_MIN_AREA
 from app.api.services import services
+from app.core.paths import STATIC_DIR, TEMPLATES_DIR
 from app.vision.motion import DEFAULT_METHOD, METHODS
 
 router = APIRouter()
-PACKAGE_DIR = Path(vigil_package.__file__).resolve().parent
-TEMPLATES = Jinja2Templates(directory=str(PACKAGE_DIR / "templates"))
-FAVICON = PACKAGE_DIR / "static" / "favicon.svg"
+TEMPLATES = Jinja2Templates(directory=str(TEMPLATES_DIR))
+FAVICON = STATIC_DIR / "favicon.svg"
 
 
 @router.get("/", response_class=HTMLResponse, include_in_schema=False)

@@ -1,8 +1,8 @@
 import numpy as np
 import pytest
 
+from app.analysis.metrics import ObjectCounts, PixelCounts, match_boxes
 from app.vision.detections import Box
-from app.vision.metrics import ObjectCounts, PixelCounts, match_boxes
 
 
 def test_detection_and_false_alarm_rates_per_object_per_frame():

@@ -26,7 +26,7 @@ $(VENV)/.installed-dev: pyproject.toml | $(BIN)/python
 # again whenever their code changes): otherwise the first camera activated after a start
 # waits for them, and its first alarm comes seconds late.
 KERNEL_SOURCES := app/vision/compiled.py app/vision/noise.py app/vision/preprocess.py \
-	app/vision/motion/adaptive_kernels.py
+	$(wildcard app/vision/motion/adaptive/*.py)
 
 $(VENV)/.kernels: $(VENV)/.installed-run $(KERNEL_SOURCES)
 	$(BIN)/python -P -c "from app.vision.pipeline import warm_up; warm_up()"

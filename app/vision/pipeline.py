@@ -22,7 +22,7 @@ from app.vision.detections import Detection
 from app.vision.histogram import GreyStats, grey_stats
 from app.vision.morphology import Morphology
 from app.vision.motion import DEFAULT_METHOD, MotionResult, create_method
-from app.vision.motion.adaptive_background import warm_up as warm_up_adaptive
+from app.vision.motion.adaptive import warm_up as warm_up_adaptive
 from app.vision.preprocess import Denoise, DenoiseMethod, Downscale, Enhance, EnhanceMethod, to_gray
 from app.vision.scene_background import SceneBackground
 from app.vision.tracker import Tracker, TrackerConfig

@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 
 from app.vision.motion import METHODS, create_method
-from app.vision.motion.adaptive_background import AdaptiveBackground, relit
+from app.vision.motion.adaptive import AdaptiveBackground, AdaptiveConfig, relit
 from app.vision.motion.frame_difference import FrameDifference
 from tests.conftest import ROOT
 
@@ -302,7 +302,7 @@ def test_adaptive_absorbs_an_object_that_stops(noise):
     # (a wrap-round in unsigned arithmetic once made half of every noisy frame so,
     # and a stopped object was never absorbed).
     rng = np.random.default_rng(7)
-    method = AdaptiveBackground(absorb_after=15)
+    method = AdaptiveBackground(config=AdaptiveConfig(absorb_after=15))
     background = textured_background(3)
 
     def seen(frame):
@@ -355,7 +355,7 @@ def test_adaptive_takes_in_a_shadow_that_stays_sooner_than_a_parked_object():
     rng = np.random.default_rng(5)
     method = AdaptiveBackground()
     background = smooth_texture(5)
-    for _ in range(method.learning_frames + 5):
+    for _ in range(method.config.learning_frames + 5):
         method.apply(noisy(background, rng))
     shaded = background.copy()
     shaded[10:50, 10:60] = background[10:50, 10:60] * 0.7
@@ -372,7 +372,7 @@ def test_adaptive_takes_in_a_shadow_that_stays_sooner_than_a_parked_object():
 def test_adaptive_counts_more_motion_regions_than_16_bit_labels_hold():
     # Full-size detection of a sensor gone to snow: every other pixel of every other
     # row moving, 259,200 regions of one pixel, on a frame that checks stale regions.
-    method = AdaptiveBackground(check_every=1)
+    method = AdaptiveBackground(config=AdaptiveConfig(check_every=1))
     calm = np.full((720, 1440), 60, np.uint8)
     method.apply(calm)
     snow = calm.copy()
@@ -409,7 +409,7 @@ def test_adaptive_works_where_no_cache_folder_is_writable(tmp_path):
     )
     script = (
         "import numpy as np\n"
-        "from app.vision.motion.adaptive_background import AdaptiveBackground\n"
+        "from app.vision.motion.adaptive import AdaptiveBackground\n"
         "method = AdaptiveBackground()\n"
         "still = np.full((48, 64), 80, np.uint8)\n"
         "for _ in range(5):\n"
@@ -471,7 +471,8 @@ def test_adaptive_model_stays_out_of_the_subnormal_range_when_things_have_long_p
             x = index - 10
             frame[14:34, x : x + 12] = 240
         method.apply(noisy(frame, rng))
-    model = method._model  # Internal, and the point: no public reading says how it is held.
-    assert model is not None
+    memory = method._memory  # Internal, and the point: no public reading says how it is held.
+    assert memory is not None
+    model = memory.model_planes
     subnormal = (model != 0) & (np.abs(model) < np.finfo(np.float32).tiny)
     assert not subnormal.any(), f"{np.count_nonzero(subnormal)} subnormal values"

@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-from app.vision.motion.adaptive_background import AdaptiveBackground
+from app.vision.motion.adaptive import AdaptiveBackground
 from app.vision.motion.base import REFERENCE_FPS, MotionMethod, MotionResult
 from app.vision.motion.frame_difference import FrameDifference
 from app.vision.motion.opencv_subtractors import KNN, MOG2

@@ -26,9 +26,10 @@ from urllib.parse import unquote, urlparse
 import cv2
 import numpy as np
 
+from app.sources.demo_scene import StreetScene, demo_street_scene
 from app.sources.files import DEFAULT_FPS, InputError, frame_rate, list_images, open_input
 from app.sources.frames import DecodedFrame, FrameError, JpegFrame, SourceFrame
-from app.sources.synthetic import MovingObject, Scene
+from app.sources.synthetic import Scene
 
 SourceKind = Literal["demo", "device", "rtsp", "http", "file"]
 
@@ -326,47 +327,21 @@ def open_source(
     return CaptureSource.network(spec.target, open_timeout_ms, read_timeout_ms)
 
 
-def demo_scene() -> Scene:
-    """A looping 24 s street scene: a walker, a car, then two people crossing.
-
-    Quiet gaps of more than two seconds separate the movements, so an
-    activated demo camera gives a new alarm (and snapshot) for each.
-    """
-    fps = 15.0
-
-    def crossing(
-        at: tuple[float, float],
-        velocity: tuple[float, float],
-        size: tuple[int, int],
-        grey: int,
-        frames: tuple[int, int],
-    ) -> MovingObject:
-        """An object whose top-left corner is at ``at`` in the first of ``frames``."""
-        first, last = frames
-        start = (at[0] - velocity[0] * first / fps, at[1] - velocity[1] * first / fps)
-        return MovingObject(start, velocity, size, grey, first_frame=first, last_frame=last)
-
-    return Scene(
-        name="demo",
-        size=(480, 272),
-        fps=fps,
-        frames=360,
-        seed=11,
-        objects=(
-            crossing((20, 150), (60.0, 0.0), (26, 60), 210, (0, 100)),
-            crossing((440, 60), (-110.0, 4.0), (70, 34), 35, (140, 200)),
-            crossing((10, 170), (50.0, 0.0), (22, 56), 200, (240, 320)),
-            crossing((440, 110), (-45.0, 3.0), (24, 58), 60, (240, 320)),
-        ),
-    )
+def demo_scene() -> StreetScene:
+    """The demo camera's scene: a street where people walk by and cars pass, a quiet gap
+    of more than two seconds between each (``app.sources.demo_scene``), so an activated
+    demo camera gives a new alarm (and snapshot) for each."""
+    return demo_street_scene()
 
 
 class DemoSource:
-    """The synthetic demo scene, looped forever (about 2 ms to render a frame; nothing cached)."""
+    """The synthetic demo scene, looped forever. The street is painted once per process
+    (about half a second) and each pose of a passer-by once, when first needed; a frame is
+    then a copy of the street with sprites pasted on (``bench/bench_demo_scene.py``)."""
 
     paced = True
 
-    def __init__(self, scene: Scene | None = None) -> None:
+    def __init__(self, scene: Scene | StreetScene | None = None) -> None:
         self.scene = scene or demo_scene()
         self.fps = self.scene.fps
         self.description = f"demo scene {self.scene.size[0]}x{self.scene.size[1]}"

@@ -1,9 +1,10 @@
 """Synthetic scenes with exact ground truth (known boxes and speeds).
 
-Used by the demo camera, by the tests and by the benchmarks. Each scene is a
-textured static background, moving objects with known positions and
-velocities, camera noise, and optional global events (a light switch, swaying
-foliage). Everything is deterministic for a given seed.
+Used by the tests and by the benchmarks (the demo camera's street, whose truth is the
+same ``TruthObject``, is ``app.sources.demo_scene``). Each scene is a textured static
+background, moving objects with known positions and velocities, camera noise, and
+optional global events (a light switch, swaying foliage). Everything is deterministic
+for a given seed.
 """
 
 from __future__ import annotations

@@ -180,7 +180,7 @@ def test_demo_loops_with_motion() -> None:
     source = DemoSource()
     assert source.paced and source.fps == 15.0
     frames = [source.read() for _ in range(source.scene.frames + 3)]
-    assert frames[0].image().shape == (272, 480, 3)
+    assert frames[0].image().shape == (480, 640, 3)
     assert (frames[-3].image() == frames[0].image()).all(), "the scene loops"
     assert len({len(source.scene.truth(i)) for i in range(source.scene.frames)}) > 1
     assert max(len(source.scene.truth(i)) for i in range(source.scene.frames)) >= 2

@@ -119,10 +119,12 @@ def test_show_older_pages_through_shared_times_and_the_zip_is_what_is_shown(
 ) -> None:
     server = serve()
     # 230 snapshots, oldest first; six of them share one time across the first page's
-    # edge (the 198th to the 203rd newest).
+    # edge (the 198th to the 203rd newest). Each of another event: a camera's snapshots
+    # of one time, kind and event share a file, and deleting the first page's would take
+    # the pictures of the next page's (greyed as deleted, unless still in the cache).
     times = [T0 + i for i in range(230)]
     times[27:33] = [T0 + 30] * 6
-    ids = [add_snapshot(server, 1, ts) for ts in times]
+    ids = [add_snapshot(server, 1, ts, event_id=i + 1) for i, ts in enumerate(times)]
     newest_first = ids[::-1]
     open_page(server, page)
     wait_for(lambda: page.locator("#thumbs figure").count() == 200, 10, "the first page")

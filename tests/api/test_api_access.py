@@ -326,7 +326,7 @@ def test_security_headers_on_pages_api_and_streams(serve: Callable[..., Running]
         assert "frame-ancestors 'none'" in csp
         return csp
 
-    for path in ("/", "/api/health", "/api/cameras/999", "/static/app.js", "/login"):
+    for path in ("/", "/api/health", "/api/cameras/999", "/static/js/main.js", "/login"):
         csp = assert_headers(httpx.get(server.base + path).headers)
         assert "default-src 'self'" in csp and "unsafe-inline" not in csp, path
     # An endless MJPEG stream gets them too, and still streams.

@@ -10,10 +10,20 @@ from typing import Any
 import httpx
 import pytest
 
-from tests.api.vigil_livekit import Running, show_cameras, wait_for, wait_for_pictures, write_video
+from tests.api.vigil_livekit import (
+    ROOT,
+    Running,
+    show_cameras,
+    wait_for,
+    wait_for_pictures,
+    write_video,
+)
 from tests.sources.damaged_video import cut_after
 
 pytestmark = pytest.mark.browser
+
+MODULES = ROOT / "static" / "js"
+"""The page's own code: native ES modules, served as they are (no build step)."""
 
 
 def test_dashboard_in_chromium(
@@ -160,3 +170,46 @@ def test_a_min_area_the_camera_cannot_take_is_said_and_undone_on_the_page(
     page.wait_for_selector(".toast >> text=a number of pixels, 0 or more", timeout=5000)
     assert area.input_value() == "100"
     assert httpx.get(f"{server.base}/api/cameras").json()[0]["min_area"] == 100
+
+
+def test_the_page_runs_as_es_modules_within_its_content_security_policy(
+    serve: Callable[..., Running], page: Any
+) -> None:
+    server = serve(demo_camera=True)
+    errors: list[str] = []
+    page.on(
+        "console", lambda message: errors.append(message.text) if message.type == "error" else None
+    )
+    page.on("pageerror", lambda error: errors.append(str(error)))
+    modules: list[str] = []
+    page.on(
+        "response",
+        lambda answer: (
+            modules.append(answer.url.split("/static/js/")[1])
+            if "/static/js/" in answer.url
+            and answer.ok
+            and "javascript" in answer.headers["content-type"]
+            else None
+        ),
+    )
+    page.goto(server.base + "/")
+    wait_for_pictures(page, 1, timeout_ms=20000)  # The demo camera's card, with its picture.
+    page.wait_for_selector(".card .motion canvas")  # Drawn by the classic script's uPlot.
+    scripts = page.locator("script").evaluate_all(
+        "scripts => scripts.map(s => [s.type, s.getAttribute('src')])"
+    )
+    assert scripts == [
+        ["", "/static/vendor/uplot/uPlot.iife.min.js"],
+        ["module", "/static/js/main.js"],
+    ]
+    # Each module of static/js loaded, as JavaScript: none is left out of the page.
+    assert sorted(modules) == sorted(
+        p.relative_to(MODULES).as_posix() for p in MODULES.rglob("*.js")
+    )
+    assert page.evaluate("window.__csp") == []
+    assert errors == []
+
+
+def test_each_module_of_the_page_reads_at_once() -> None:
+    lines = {p.name: len(p.read_text().splitlines()) for p in MODULES.rglob("*.js")}
+    assert lines and max(lines.values()) <= 400, lines

@@ -4,6 +4,7 @@ slider in auto mode, an action while the server is down, a tab left in the backg
 from __future__ import annotations
 
 import re
+import time
 from collections.abc import Callable
 from pathlib import Path
 from typing import Any
@@ -11,12 +12,14 @@ from typing import Any
 import httpx
 import pytest
 
+from tests.api.test_api_browser_dashboard import alarm, publish
 from tests.api.vigil_livekit import (
     Running,
     add_snapshot,
     set_hidden,
     show_cameras,
     wait_for,
+    watch_analysis_live,
 )
 
 pytestmark = pytest.mark.browser
@@ -96,7 +99,7 @@ def test_a_hidden_page_closes_its_streams_and_opens_them_again_when_shown(
     assert all(hub.watching["picture"] >= 1 for hub in hubs)
     set_hidden(page, True)
     # An analysis watched live meanwhile opens no stream either.
-    page.evaluate("() => setStatus(analysisPanel('a1', 'clip.avi'), 'a1', 'running')")
+    watch_analysis_live(server, page)
     assert page.evaluate(STREAMS_OPEN) == 0
     # The server sees the streams' viewers go (it checks every second).
     wait_for(lambda: all(hub.watching["picture"] == 0 for hub in hubs), 5, "the streams to close")
@@ -129,7 +132,7 @@ def test_select_all_says_what_is_ticked_when_snapshots_arrive(
     wait_for(lambda: boxes.count() == 2, 10, "two thumbnails")
     select_all.check()
     later = add_snapshot(server, cam, 1_800_000_010.0)
-    page.evaluate("() => loadGallery()")
+    publish(server, alarm(cam, 1, time.time()))  # An alarm's snapshot: the gallery lists it.
     wait_for(lambda: boxes.count() == 3, 10, "the new thumbnail")
     ticked = page.locator("#thumbs input:checked").evaluate_all("bs => bs.map(b => +b.value)")
     assert sorted(ticked) == first  # What was shown when it was ticked, not the newcomer.

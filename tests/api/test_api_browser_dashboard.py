@@ -29,6 +29,7 @@ from tests.api.vigil_livekit import (
     show_cameras,
     wait_for,
     wait_for_pictures,
+    watch_analysis_live,
 )
 
 pytestmark = pytest.mark.browser
@@ -402,7 +403,7 @@ def test_a_camera_that_becomes_polled_while_the_page_is_hidden_asks_nothing_till
     wait_for(lambda: hub.watching["picture"] == 0, 5, "the stream to close")
     asked: list[str] = []
     page.on("request", lambda r: asked.append(r.url) if f"/cameras/{ids[3]}/" in r.url else None)
-    page.evaluate("() => setStatus(analysisPanel('a1', 'clip.avi'), 'a1', 'running')")
+    watch_analysis_live(server, page)
     page.wait_for_timeout(1500)
     assert asked == [] and last.get_attribute("src") is None
     # Back in view: the other three stream again, and the last camera shows polled frames.

@@ -119,10 +119,12 @@ def test_show_older_pages_through_shared_times_and_the_zip_is_what_is_shown(
 ) -> None:
     server = serve()
     # 230 snapshots, oldest first; six of them share one time across the first page's
-    # edge (the 198th to the 203rd newest).
+    # edge (the 198th to the 203rd newest). Each of another event: a camera's snapshots
+    # of one time, kind and event share a file, and deleting the first page's would take
+    # the pictures of the next page's (greyed as deleted, unless still in the cache).
     times = [T0 + i for i in range(230)]
     times[27:33] = [T0 + 30] * 6
-    ids = [add_snapshot(server, 1, ts) for ts in times]
+    ids = [add_snapshot(server, 1, ts, event_id=i + 1) for i, ts in enumerate(times)]
     newest_first = ids[::-1]
     open_page(server, page)
     wait_for(lambda: page.locator("#thumbs figure").count() == 200, 10, "the first page")
@@ -142,7 +144,7 @@ def test_show_older_pages_through_shared_times_and_the_zip_is_what_is_shown(
 
     # A new snapshot (as an alarm brings): on top, the older ones still shown.
     later = add_snapshot(server, 1, T0 + 1000)
-    page.evaluate("() => loadGallery()")
+    publish(server, alarm(1, 1, time.time()))
     wait_for(lambda: page.locator("#thumbs figure").count() == 231, 10, "the new one")
     assert thumbnail_ids(page) == [later, *newest_first]
     # The filters given anew start again from the newest.
@@ -179,9 +181,9 @@ def test_an_alarm_s_refresh_and_show_older_at_once_both_land(
 
     page.route("**/api/snapshots?*", refresh_slowly)
     later = add_snapshot(server, 1, T0 + 1000)
-    page.evaluate("() => { loadGallery(); }")
-    page.get_by_role("button", name="Show older").click()
+    publish(server, alarm(1, 1, time.time()))  # Its refresh of the gallery: a second on.
     wait_for(lambda: slow or page.wait_for_timeout(50), 10, "the refresh asked for")
+    page.get_by_role("button", name="Show older").click()
     page.wait_for_timeout(300)
     slow.pop().continue_()
     page.unroute("**/api/snapshots?*")
@@ -199,10 +201,9 @@ def test_a_save_on_the_edit_form_sends_only_what_was_changed_there_and_hides_a_p
     open_page(server, page, cards=1)
     card = page.locator(f'.card[data-id="{cam}"]')
     card.get_by_role("button", name="Edit").click()
-    # Meanwhile another client points the camera elsewhere, and the page hears of it.
+    # Meanwhile another client points the camera elsewhere, and the page hears of it (/ws).
     elsewhere = nowhere()
     httpx.patch(f"{server.base}/api/cameras/{cam}", json={"source": elsewhere}).raise_for_status()
-    page.evaluate("() => loadCameras()")
     wait_for(lambda: card.locator(".cam-source").inner_text() == elsewhere, 10, "the new source")
     # The user renames it only: the other client's source stays.
     card.get_by_label("Name").fill("porch")
@@ -221,8 +222,12 @@ def test_a_save_on_the_edit_form_sends_only_what_was_changed_there_and_hides_a_p
     card.get_by_label("Source").fill("rtsp://admin:n3wpass@127.0.0.1:9/live")
     card.get_by_label("Source").press("Enter")
     wait_for(lambda: held or page.wait_for_timeout(50), 10, "the save asked for")
-    # As a status message redraws the card meanwhile.
-    page.evaluate("(id) => updateCard(state.cards.get(id), state.cameras.get(id))", cam)
+    # A status message redraws the card meanwhile.
+    publish(server, {"type": "status", "camera_id": cam, "reason": "redrawn"})
+    page.wait_for_function(
+        f"() => document.querySelector('.card[data-id=\"{cam}\"] .reason').textContent"
+        " === 'redrawn'"
+    )
     assert "n3wpass" not in card.inner_text()
     assert "n3wpass" not in (card.locator(".cam-source").get_attribute("title") or "")
     held.pop().continue_()

@@ -22,7 +22,7 @@ def test_health_and_page(serve: Callable[..., Running]) -> None:
     page = httpx.get(f"{server.base}/")
     assert page.status_code == 200 and "text/html" in page.headers["content-type"]
     assert "Vigil" in page.text
-    assert httpx.get(f"{server.base}/static/app.js").status_code == 200
+    assert httpx.get(f"{server.base}/static/js/main.js").status_code == 200
     assert httpx.get(f"{server.base}/static/app.css").status_code == 200
 
 
@@ -195,7 +195,7 @@ def test_source_passwords_are_never_shown(serve: Callable[..., Running], tmp_pat
             assert [c["source"] for c in listed.json()] == [shown]
             one = httpx.get(f"{base}/api/cameras/{cam}")
             assert one.json()["source"] == shown and password not in one.text
-            for path in ("/", "/static/app.js"):
+            for path in ("/", "/static/js/main.js"):
                 assert password not in httpx.get(f"{base}{path}").text
 
             # The source sent back as shown, with another setting: the password stays.

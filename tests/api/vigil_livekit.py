@@ -161,6 +161,16 @@ def add_snapshot(
     return int(services.database.add_snapshot(camera_id, event_id, ts, kind, path, len(jpeg)))
 
 
+def watch_analysis_live(server: Running, page: Any, analysis_id: str = "a1") -> None:
+    """An analysis running on the server that ``page`` hears of on /ws, as of an upload:
+    its panel shows it running, with its live stream (which takes a connection)."""
+    services = server.server.config.app.state.services
+    services.database.add_analysis(analysis_id, "clip.avi", {})
+    services.database.update_analysis(analysis_id, status="running")
+    services.bus.publish({"type": "status", "analysis_id": analysis_id, "status": "running"})
+    page.wait_for_selector(f'.analysis[data-id="{analysis_id}"] .status.badge-running')
+
+
 @contextmanager
 def serve_process(
     data_dir: Path, own_group: bool = False, **env: str

@@ -12,6 +12,7 @@ from fastapi import HTTPException, Request
 from starlette.requests import HTTPConnection
 
 from app.core.config import Settings
+from app.events.messages import DELETED_IDS_PER_MESSAGE, SnapshotsDeleted
 from app.sources.live import without_password
 from app.storage.db import Database
 from app.storage.files import SnapshotStore, prune, prune_to_size
@@ -24,10 +25,6 @@ from app.workers.manager import CameraManager
 log = logging.getLogger("vigil")
 
 MB = 1024 * 1024
-
-DELETED_IDS_PER_MESSAGE = 1000
-"""The most ids one ``snapshots_deleted`` message names: a large delete or prune is told
-in several, each of a bounded size."""
 
 
 class Services:
@@ -124,7 +121,7 @@ class Services:
         deleted, so none keeps showing one its browser already loaded."""
         for start in range(0, len(ids), DELETED_IDS_PER_MESSAGE):
             chunk = ids[start : start + DELETED_IDS_PER_MESSAGE]
-            self.bus.publish({"type": "snapshots_deleted", "ids": chunk})
+            self.bus.publish(SnapshotsDeleted(ids=chunk))
 
     def storage(self) -> dict[str, Any]:
         """Free space, the snapshots' total and cap, and why snapshots fail (None: they don't)."""

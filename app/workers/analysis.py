@@ -17,6 +17,7 @@ from pathlib import Path
 from typing import Any
 
 import app
+from app.events.messages import AnalysisState, AnalysisStatus, Progress
 from app.storage.db import Database
 from app.workers.bus import EventBus
 
@@ -111,8 +112,8 @@ class AnalysisManager:
             return
         self.db.update_analysis(analysis_id, status="running", progress=0.0)
         self.progress[analysis_id] = 0.0
-        self.bus.publish({"type": "status", "analysis_id": analysis_id, "status": "running"})
-        self.bus.publish({"type": "progress", "analysis_id": analysis_id, "progress": 0.0})
+        self.bus.publish(AnalysisStatus(analysis_id=analysis_id, status="running"))
+        self.bus.publish(Progress(analysis_id=analysis_id, progress=0.0))
         env = dict(os.environ)
         env["PYTHONPATH"] = os.pathsep.join(
             p for p in (str(PACKAGE_ROOT), env.get("PYTHONPATH", "")) if p
@@ -164,12 +165,11 @@ class AnalysisManager:
                     fraction = float(message["progress"])
                     self.progress[analysis_id] = fraction
                     self.bus.publish(
-                        {
-                            "type": "progress",
-                            "analysis_id": analysis_id,
-                            "progress": fraction,
-                            "frames": message.get("frames"),
-                        }
+                        Progress(
+                            analysis_id=analysis_id,
+                            progress=fraction,
+                            frames=message.get("frames"),
+                        )
                     )
                 elif "error" in message:
                     error = _one_line(str(message["error"])) or "the analysis failed"
@@ -186,7 +186,7 @@ class AnalysisManager:
                 self._children.pop(analysis_id, None)
         if done and code == 0:
             self.progress[analysis_id] = 1.0
-            self.bus.publish({"type": "progress", "analysis_id": analysis_id, "progress": 1.0})
+            self.bus.publish(Progress(analysis_id=analysis_id, progress=1.0))
             # The warnings are also the report's (GET /api/analyses/{id}: report.warnings).
             self._finish(analysis_id, "done", None, warnings)
             return
@@ -212,7 +212,11 @@ class AnalysisManager:
         ]
 
     def _finish(
-        self, analysis_id: str, status: str, error: str | None, warnings: list[str] | None = None
+        self,
+        analysis_id: str,
+        status: AnalysisState,
+        error: str | None,
+        warnings: list[str] | None = None,
     ) -> None:
         # A failed analysis keeps how far it got; the row first, so that no reader sees
         # the analysis running at the progress stored when it started.
@@ -221,15 +225,10 @@ class AnalysisManager:
             analysis_id, status=status, error=error, finished_at=time.time(), progress=reached
         )
         self.progress.pop(analysis_id, None)
-        message: dict[str, Any] = {
-            "type": "status",
-            "analysis_id": analysis_id,
-            "status": status,
-            "error": error,
-        }
-        if warnings:
-            message["warnings"] = warnings
-        self.bus.publish(message)
+        some: dict[str, Any] = {"warnings": warnings} if warnings else {}  # Only when any.
+        self.bus.publish(
+            AnalysisStatus(analysis_id=analysis_id, status=status, error=error, **some)
+        )
 
 
 def exit_reason(code: int, last_stderr: str = "") -> str:

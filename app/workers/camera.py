@@ -19,6 +19,7 @@ import cv2
 
 from app.core.config import Settings
 from app.events.alarm import AlarmLogic, MotionEvent
+from app.events.messages import Alarm, AlarmObject, CameraStatus, MotionEnd
 from app.sources.files import valid_fps
 from app.sources.frames import FrameError, SourceFrame
 from app.sources.live import (
@@ -465,23 +466,22 @@ class CameraWorker:
                 )
             else:
                 log.info("camera %s: snapshots saved again", self.camera_id)
-            self.bus.publish({"type": "status", **self.status(), "storage_error": failing})
+            self.bus.publish(CameraStatus(**self.status(), storage_error=failing))
         self.last_alarm = now
         urls = {kind: f"/api/snapshots/{snapshot_id}.jpg" for kind, snapshot_id in ids.items()}
         self.bus.publish(
-            {
-                "type": "alarm",
-                "camera_id": self.camera_id,
-                "camera_name": self.name,
-                "event_id": event_id,
-                "ts": now,
-                "frame": result.index,
-                "boxes": boxes,
-                "objects": [_detection(d) for d in detections],
-                "snapshot": urls.get("frame"),
-                "snapshot_id": ids.get("frame"),
-                "difference": urls.get("difference"),
-            }
+            Alarm(
+                camera_id=self.camera_id,
+                camera_name=self.name,
+                event_id=event_id,
+                ts=now,
+                frame=result.index,
+                boxes=boxes,
+                objects=[_alarm_object(d) for d in detections],
+                snapshot=urls.get("frame"),
+                snapshot_id=ids.get("frame"),
+                difference=urls.get("difference"),
+            )
         )
 
     def _motion_end(self, event: MotionEvent) -> None:
@@ -520,8 +520,7 @@ class CameraWorker:
 
     def _publish_status(self) -> None:
         self._last_status = time.monotonic()
-        message = {"type": "status", **self.status()}
-        self.bus.publish(message)
+        self.bus.publish(CameraStatus(**self.status()))
 
 
 def status_fields(
@@ -565,26 +564,25 @@ STATUS_FIELDS = tuple(status_fields(0))
 
 def motion_end_message(
     camera_id: int, event_id: int, ts: float, duration_s: float, max_area: float
-) -> dict[str, Any]:
+) -> MotionEnd:
     """The ``motion_end`` message on /ws: an event of a camera ended at ``ts``."""
-    return {
-        "type": "motion_end",
-        "camera_id": camera_id,
-        "event_id": event_id,
-        "ts": ts,
-        "duration_s": round(duration_s, 3),
-        "max_area": round(max_area, 1),
-    }
+    return MotionEnd(
+        camera_id=camera_id,
+        event_id=event_id,
+        ts=ts,
+        duration_s=round(duration_s, 3),
+        max_area=round(max_area, 1),
+    )
 
 
-def _detection(d: Detection) -> dict[str, Any]:
-    return {
-        "track_id": d.track_id,
-        "box": d.box.as_list(),
-        "area": round(d.area, 1),
-        "speed_px_s": round(d.speed_px_s, 2),
-        "distance_px": round(d.distance_px, 2),
-    }
+def _alarm_object(d: Detection) -> AlarmObject:
+    return AlarmObject(
+        track_id=d.track_id,
+        box=d.box.as_list(),
+        area=round(d.area, 1),
+        speed_px_s=round(d.speed_px_s, 2),
+        distance_px=round(d.distance_px, 2),
+    )
 
 
 def _glance(frame: SourceFrame) -> GrayImage:

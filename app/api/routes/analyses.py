@@ -18,6 +18,7 @@ from fastapi.responses import FileResponse, JSONResponse, StreamingResponse
 from app.api.routes.inputs import check_min_area, is_control
 from app.api.routes.streams import MJPEG_TYPE, NO_CACHE, mjpeg_part
 from app.api.services import Services, services
+from app.events.messages import AnalysisStatus
 from app.vision.motion import METHODS
 from app.vision.pipeline import check_detect_width
 from app.workers.analysis_child import LIVE_FRAME
@@ -111,7 +112,7 @@ async def upload(
     }
     svc.database.add_analysis(analysis_id, filename, options)
     svc.analyses.submit(analysis_id)
-    svc.bus.publish({"type": "status", "analysis_id": analysis_id, "status": "queued"})
+    svc.bus.publish(AnalysisStatus(analysis_id=analysis_id, status="queued"))
     return {"id": analysis_id, "url": f"/api/analyses/{analysis_id}"}
 
 

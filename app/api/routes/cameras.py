@@ -14,6 +14,7 @@ from pydantic import BaseModel, Field, field_validator
 
 from app.api.routes.inputs import STRICT, StrictJsonRoute, check_min_area, is_control
 from app.api.services import services
+from app.events.messages import CameraStatus
 from app.sources.live import MASK, has_masked_password, parse_source, with_stored_password
 from app.vision.motion import DEFAULT_METHOD, METHODS
 from app.vision.zones import as_polygons
@@ -161,7 +162,7 @@ def change_camera(request: Request, camera_id: int, body: CameraPatch) -> dict[s
     # Every page shows the change at once, not at its next listing of the cameras.
     status = {key: view[key] for key in STATUS_FIELDS if key in view}
     changed = {key: view[key] for key in changes}
-    svc.bus.publish({"type": "status", "camera_id": camera_id, **status, **changed})
+    svc.bus.publish(CameraStatus(**{"camera_id": camera_id, **status, **changed}))
     return view
 
 

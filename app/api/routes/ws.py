@@ -9,6 +9,7 @@ import contextlib
 from fastapi import APIRouter, WebSocket, WebSocketDisconnect
 
 from app.api.services import services
+from app.events.messages import CameraStatus
 
 router = APIRouter()
 
@@ -21,7 +22,7 @@ async def websocket(socket: WebSocket) -> None:
     receiver = asyncio.create_task(_ignore_incoming(socket))
     try:
         for worker in svc.cameras.all():  # Where every camera stands, first.
-            await socket.send_json({"type": "status", **worker.status()})
+            await socket.send_json(CameraStatus(**worker.status()).wire())
         while True:
             getter = asyncio.create_task(queue.get())
             done, _ = await asyncio.wait({getter, receiver}, return_when=asyncio.FIRST_COMPLETED)

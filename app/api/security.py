@@ -333,7 +333,11 @@ class AccessControl:
 
 
 def _wants_page(scope: Scope) -> bool:
-    return scope["method"] in ("GET", "HEAD") and not scope["path"].startswith("/api/")
+    """A browser's GET of a page, which a login answers; not the API or ``/metrics``."""
+    path = scope["path"]
+    return (
+        scope["method"] in ("GET", "HEAD") and not path.startswith("/api/") and path != "/metrics"
+    )
 
 
 def _basic_auth_password(header: str | None) -> str | None:

@@ -139,6 +139,17 @@ class SnapshotsDeleted(WsMessage):
     ids: list[int] = Field(min_length=1, max_length=DELETED_IDS_PER_MESSAGE)
 
 
+class DetectSeconds(BaseModel):
+    """A histogram of detection times: ``counts`` per bucket of
+    ``app.workers.figures.DETECT_BUCKETS`` (seconds, upper bounds), the last above them
+    all; ``sum`` in seconds."""
+
+    model_config = ConfigDict(strict=True, extra="forbid", frozen=True)
+
+    counts: list[int]
+    sum: Number
+
+
 CameraState = Literal["connecting", "live", "reconnecting", "error", "stopped"]
 
 
@@ -173,6 +184,10 @@ class CameraStatus(WsMessage):
     """The grey-level threshold in use; null while not detecting."""
     last_alarm: Number | None
     """UNIX time of the last alarm."""
+    alarms: int
+    """Alarms raised since the worker started."""
+    detect_seconds: DetectSeconds
+    """How long detection took per frame since the worker started (``/metrics``)."""
     process: int | None = None
     """The camera process it runs in (not after a ``PATCH``)."""
     storage_error: str | None = None

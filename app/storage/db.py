@@ -56,6 +56,7 @@ CREATE INDEX IF NOT EXISTS snapshots_camera_time ON snapshots (camera_id, ts);
 CREATE INDEX IF NOT EXISTS snapshots_time ON snapshots (ts);
 CREATE INDEX IF NOT EXISTS snapshots_event ON snapshots (event_id);
 CREATE INDEX IF NOT EXISTS events_time ON events (started_at);
+CREATE INDEX IF NOT EXISTS events_open ON events (camera_id) WHERE ended_at IS NULL;
 -- The snapshots' total size, kept by triggers, so a size cap is checked without a scan.
 CREATE TABLE IF NOT EXISTS snapshot_usage (
     id INTEGER PRIMARY KEY CHECK (id = 1),
@@ -309,6 +310,11 @@ class Database:
         with self._tx() as conn:
             conn.executemany("DELETE FROM snapshots WHERE id = ?", [(r["id"],) for r in rows])
         return rows
+
+    def open_events(self) -> int:
+        """How many events have not ended (a camera is moving, or a run left them open)."""
+        row = self._query_one("SELECT COUNT(*) FROM events WHERE ended_at IS NULL")
+        return int(row[0]) if row else 0
 
     def snapshot_bytes(self) -> int:
         """The total size of every snapshot, from the running total (no scan)."""

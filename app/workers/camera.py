@@ -39,6 +39,7 @@ from app.vision.scene_background import estimate_recent_scene
 from app.vision.types import GrayImage
 from app.vision.zones import as_polygons
 from app.workers.bus import Publisher
+from app.workers.figures import TimeHistogram
 from app.workers.hub import ANNOTATOR, EncodeCounter, FrameHub, LiveFrame, encode_jpeg
 
 log = logging.getLogger("vigil.camera")
@@ -116,6 +117,8 @@ class CameraWorker:
         self.motion = 0.0
         self.threshold: float | None = None
         self.last_alarm: float | None = None
+        self.alarms = 0
+        self.detect_times = TimeHistogram()
         self._times: deque[float] = deque(maxlen=64)
         self._measured_fps = 0.0
         """The frame rate last measured over ``MEASURED_FRAMES`` or more, reconnects aside."""
@@ -175,6 +178,8 @@ class CameraWorker:
             motion=self.motion,
             threshold=self.threshold,
             last_alarm=self.last_alarm,
+            alarms=self.alarms,
+            detect_seconds=self.detect_times.wire(),
         )
 
     # The thread ---------------------------------------------------------------------------
@@ -312,7 +317,9 @@ class CameraWorker:
         if pipeline is not None and alarms is not None:
             # Detection needs grey at its own width only: a JPEG decodes to that directly.
             gray = frame.gray(pipeline.config.detect_width)
+            started = time.perf_counter()
             result = pipeline.process(gray, now_mono - self._activated_at, frame.size)
+            self.detect_times.observe(time.perf_counter() - started)
             self.processed += 1
             live.detections = result.detections
             live.trails = pipeline.tracker.trails()
@@ -468,6 +475,7 @@ class CameraWorker:
                 log.info("camera %s: snapshots saved again", self.camera_id)
             self.bus.publish(CameraStatus(**self.status(), storage_error=failing))
         self.last_alarm = now
+        self.alarms += 1
         urls = {kind: f"/api/snapshots/{snapshot_id}.jpg" for kind, snapshot_id in ids.items()}
         self.bus.publish(
             Alarm(
@@ -538,6 +546,8 @@ def status_fields(
     motion: float = 0.0,
     threshold: float | None = None,
     last_alarm: float | None = None,
+    alarms: int = 0,
+    detect_seconds: dict[str, Any] | None = None,
 ) -> dict[str, Any]:
     """A camera's status as the API and ``status`` messages show it; the defaults are a
     new camera's, before its first frame."""
@@ -555,6 +565,8 @@ def status_fields(
         "motion": round(motion, 5),
         "threshold": None if threshold is None else round(threshold, 1),
         "last_alarm": last_alarm,
+        "alarms": alarms,
+        "detect_seconds": detect_seconds or TimeHistogram().wire(),
     }
 
 

@@ -1,22 +1,30 @@
-"""The /ws messages' models: their wire form is the JSON the page and clients read."""
+"""The /ws messages' models: their wire form is the JSON the page and clients read, and
+docs/websocket.md shows their JSON Schema as the models give it."""
 
 from __future__ import annotations
 
+import importlib.util
 import json
+from pathlib import Path
+from types import ModuleType
 
 import pytest
 from pydantic import ValidationError
 
 from app.events.messages import (
+    MESSAGES,
     Alarm,
     AnalysisStatus,
     CameraStatus,
     Progress,
     SnapshotsDeleted,
+    message_schemas,
     parse_message,
 )
 from app.vision.detections import Box, Detection
 from app.workers.camera import STATUS_FIELDS, _alarm_object, motion_end_message, status_fields
+
+ROOT = Path(__file__).resolve().parents[2]
 
 
 def _round_trips(wire: dict) -> type:
@@ -92,3 +100,32 @@ def test_a_sender_cannot_make_a_message_of_the_wrong_shape() -> None:
         SnapshotsDeleted(ids=list(range(1001)))
     with pytest.raises(ValidationError):
         Alarm.model_validate({"type": "alarm", "camera_id": 1})
+
+
+# --- docs/websocket.md --------------------------------------------------------------------
+
+
+def _schema_tool() -> ModuleType:
+    spec = importlib.util.spec_from_file_location("update_schemas", ROOT / "docs/update_schemas.py")
+    assert spec is not None and spec.loader is not None
+    module = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(module)
+    return module
+
+
+def test_the_docs_show_each_models_json_schema() -> None:
+    """Regenerate with ``python docs/update_schemas.py`` after changing a model."""
+    tool = _schema_tool()
+    text = (ROOT / "docs/websocket.md").read_text()
+    assert tool.updated(text) == text, "docs/websocket.md is stale: run docs/update_schemas.py"
+    assert set(tool.blocks(text)) == {model.__name__ for model in MESSAGES}
+    for name, block in tool.blocks(text).items():
+        assert json.loads(block) == message_schemas()[name]
+
+
+def test_the_docs_examples_are_messages() -> None:
+    text = (ROOT / "docs/websocket.md").read_text()
+    examples = _schema_tool().examples(text)
+    assert {type(parse_message(json.loads(e))).__name__ for e in examples} == {
+        model.__name__ for model in MESSAGES
+    }

@@ -60,6 +60,8 @@ QUIET_S = 1.0
 """Seconds without a detection that end an event, as ``vigil analyze`` counts them."""
 
 VGA = (640, 480)
+OPENCV_SEED = 1
+"""OpenCV's random generator is set to this before each method's run of a scene."""
 
 # --- the scenes ---------------------------------------------------------------------------
 
@@ -514,6 +516,9 @@ def run_scene(item: SweepScene, methods: Sequence[str]) -> list[Outcome]:
     frames, input_digest = render(item.scene)
     outcomes = []
     for method in methods:
+        # OpenCV's KNN draws from OpenCV's random generator, which lives on in the process:
+        # without this, its masks depend on what the process ran before.
+        cv2.setRNGSeed(OPENCV_SEED)
         tally = Tally(item.scene, item.group, method)
         for result in run_pipeline(method, frames, item.scene.fps, item.scan):
             tally.add(result)

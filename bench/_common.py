@@ -74,6 +74,17 @@ def method_label(name: str) -> str:
     return f"{name} (default)" if name == DEFAULT_METHOD else name
 
 
+def parse_methods(parser: argparse.ArgumentParser, text: str) -> list[str]:
+    """The comma-separated methods of ``text``; an unknown one is the parser's error."""
+    methods = [m.strip() for m in text.split(",") if m.strip()]
+    unknown = [m for m in methods if m not in method_names()]
+    if unknown:
+        parser.error(
+            f"unknown method(s) {', '.join(unknown)}; choose from {', '.join(method_names())}"
+        )
+    return methods
+
+
 def make_pipeline(method: str, fps: float) -> Pipeline:
     """Vigil's pipeline with its default settings and the given method."""
     return Pipeline(PipelineConfig(method=method), fps=fps)

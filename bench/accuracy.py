@@ -34,6 +34,7 @@ from _common import (
     method_label,
     method_names,
     no_data_reason,
+    parse_methods,
     print_environment,
     print_table,
     run_pipeline,
@@ -358,12 +359,7 @@ def parse_args(argv: Sequence[str] | None = None) -> argparse.Namespace:
     )
     add_data_argument(parser)
     args = parser.parse_args(argv)
-    args.methods = [m.strip() for m in args.methods.split(",") if m.strip()]
-    unknown = [m for m in args.methods if m not in method_names()]
-    if unknown:
-        parser.error(
-            f"unknown method(s) {', '.join(unknown)}; choose from {', '.join(method_names())}"
-        )
+    args.methods = parse_methods(parser, args.methods)
     return args
 
 

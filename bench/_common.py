@@ -23,6 +23,7 @@ import numpy as np  # noqa: E402
 
 from app.analysis.runner import scan_background  # noqa: E402
 from app.vision.motion import DEFAULT_METHOD, METHODS  # noqa: E402
+from app.vision.motion.adaptive import MECHANISMS, AdaptiveBackground, AdaptiveConfig  # noqa: E402
 from app.vision.pipeline import FrameResult, Pipeline, PipelineConfig  # noqa: E402
 from app.vision.types import Image  # noqa: E402
 
@@ -74,10 +75,20 @@ def method_label(name: str) -> str:
     return f"{name} (default)" if name == DEFAULT_METHOD else name
 
 
+WITHOUT = "-without-"
+"""``adaptive-without-NAME``: the default method with its mechanism NAME switched off
+(``AdaptiveConfig``), to measure what the mechanism is worth."""
+
+
+def without(mechanism: str) -> str:
+    return f"{DEFAULT_METHOD}{WITHOUT}{mechanism}"
+
+
 def parse_methods(parser: argparse.ArgumentParser, text: str) -> list[str]:
     """The comma-separated methods of ``text``; an unknown one is the parser's error."""
     methods = [m.strip() for m in text.split(",") if m.strip()]
-    unknown = [m for m in methods if m not in method_names()]
+    known = [*method_names(), *(without(mechanism) for mechanism in MECHANISMS)]
+    unknown = [m for m in methods if m not in known]
     if unknown:
         parser.error(
             f"unknown method(s) {', '.join(unknown)}; choose from {', '.join(method_names())}"
@@ -86,8 +97,14 @@ def parse_methods(parser: argparse.ArgumentParser, text: str) -> list[str]:
 
 
 def make_pipeline(method: str, fps: float) -> Pipeline:
-    """Vigil's pipeline with its default settings and the given method."""
-    return Pipeline(PipelineConfig(method=method), fps=fps)
+    """Vigil's pipeline with its default settings and the given method (or the default one
+    without a mechanism: ``WITHOUT``)."""
+    name, _, mechanism = method.partition(WITHOUT)
+    pipeline = Pipeline(PipelineConfig(method=name), fps=fps)
+    if mechanism:
+        config = AdaptiveConfig(**{mechanism: False})
+        pipeline.method = AdaptiveBackground(fps=fps, config=config)
+    return pipeline
 
 
 def run_pipeline(

@@ -26,6 +26,7 @@ from pathlib import Path
 import cv2
 from _common import (
     REPO_ROOT,
+    WITHOUT,
     Cell,
     fmt,
     method_label,
@@ -33,6 +34,7 @@ from _common import (
     print_environment,
     print_table,
     run_pipeline,
+    without,
 )
 from scene_effects import (
     CloudShadow,
@@ -52,6 +54,8 @@ from scene_effects import (
 from app.analysis.metrics import DEFAULT_IOU, ObjectCounts
 from app.events.alarm import AlarmLogic
 from app.sources.synthetic import MovingObject, Scene, in_view_scenes, standard_scenes
+from app.vision.motion import DEFAULT_METHOD
+from app.vision.motion.adaptive import MECHANISMS
 from app.vision.pipeline import FrameResult
 from app.vision.types import Image
 
@@ -594,9 +598,7 @@ def pooled_rows(outcomes: Sequence[Outcome], groups: Sequence[str]) -> list[list
             chosen = [o for o in mine if group in ("all", o.group)]
             if not chosen:
                 continue
-            counts = ObjectCounts(
-                sum(o.tp for o in chosen), sum(o.fp for o in chosen), sum(o.fn for o in chosen)
-            )
+            counts = _pooled(chosen)
             rows.append(
                 [
                     method_label(method),
@@ -631,6 +633,57 @@ def print_results(outcomes: Sequence[Outcome], scenes: dict[str, SweepScene]) ->
         pooled_rows(outcomes, groups),
         left=2,
     )
+
+
+def print_mechanisms(outcomes: Sequence[Outcome]) -> None:
+    """What each mechanism switched off costs: pooled figures against the default method's,
+    and the scenes it makes worse or better (DR or FAR moved by more than 0.01)."""
+    full = {o.scene: o for o in outcomes if o.method == DEFAULT_METHOD}
+    rows: list[list[Cell]] = []
+    for method in dict.fromkeys(o.method for o in outcomes if WITHOUT in o.method):
+        off = [o for o in outcomes if o.method == method]
+        on = [full[o.scene] for o in off]
+        pooled_off, pooled_on = _pooled(off), _pooled(on)
+        judged = [_judged(a.counts, b.counts) for a, b in zip(on, off, strict=True)]
+        worse = [o.scene for o, j in zip(off, judged, strict=True) if j == "worse"]
+        better = sum(j == "better" for j in judged)
+        rows.append(
+            [
+                method.partition(WITHOUT)[2],
+                _delta(pooled_on.detection_rate, pooled_off.detection_rate),
+                _delta(pooled_on.false_alarm_rate, pooled_off.false_alarm_rate),
+                f"{sum(o.tracks for o in on)} -> {sum(o.tracks for o in off)}",
+                len(worse),
+                better,
+                ", ".join(worse[:4]) + (" ..." if len(worse) > 4 else ""),
+            ]
+        )
+    print_table(
+        f"Each mechanism switched off ({DEFAULT_METHOD} -> without it, pooled over the scenes)",
+        ["switched off", "DR", "FAR", "tracks", "worse", "better", "worse on (first four)"],
+        rows,
+        note="    worse / better: scenes whose DR fell or FAR rose (or the reverse) by more "
+        "than 0.01",
+        left=1,
+    )
+
+
+def _pooled(outcomes: Sequence[Outcome]) -> ObjectCounts:
+    return ObjectCounts(
+        sum(o.tp for o in outcomes), sum(o.fp for o in outcomes), sum(o.fn for o in outcomes)
+    )
+
+
+def _judged(before: ObjectCounts, after: ObjectCounts) -> str | None:
+    """ "worse" where DR fell or FAR rose by more than 0.01, "better" where either moved
+    the other way as much, else None (an undefined rate counts as 0)."""
+    dr = (after.detection_rate or 0.0) - (before.detection_rate or 0.0)
+    far = (after.false_alarm_rate or 0.0) - (before.false_alarm_rate or 0.0)
+    if dr < -0.01 or far > 0.01:
+        return "worse"
+    if dr > 0.01 or far < -0.01:
+        return "better"
+    return None
 
 
 # --- the baseline --------------------------------------------------------------------------
@@ -819,9 +872,19 @@ def parse_args(argv: Sequence[str] | None = None) -> argparse.Namespace:
         action="store_true",
         help="exit with status 1 when anything differs from the baseline",
     )
+    parser.add_argument(
+        "--off",
+        default="",
+        help="also run the default method with each of these mechanisms switched off "
+        "(comma-separated AdaptiveConfig switches, or 'all'), and print what each is worth",
+    )
     parser.add_argument("--list", action="store_true", help="list the scenes and stop")
     args = parser.parse_args(argv)
-    args.methods = parse_methods(parser, args.method)
+    mechanisms = list(MECHANISMS) if args.off == "all" else [m for m in args.off.split(",") if m]
+    extra = [without(mechanism) for mechanism in mechanisms]
+    args.methods = parse_methods(parser, ",".join([args.method, *extra]))
+    if extra and DEFAULT_METHOD not in args.methods:
+        args.methods.insert(0, DEFAULT_METHOD)
     args.patterns = [p.strip() for p in args.scenes.split(",") if p.strip()]
     return args
 
@@ -842,6 +905,8 @@ def main(argv: Sequence[str] | None = None) -> int:
     print(f"{len(scenes)} of {len(everything)} scenes; {methods}; {args.jobs} process(es)")
     outcomes = run_sweep(scenes, args.methods, args.jobs)
     print_results(outcomes, scenes)
+    if any(WITHOUT in method for method in args.methods):
+        print_mechanisms(outcomes)
     baseline = load_baseline(args.baseline)
     same = print_comparison(outcomes, baseline, args.baseline)
     if args.write_baseline:

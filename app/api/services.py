@@ -12,13 +12,14 @@ from fastapi import HTTPException, Request
 from starlette.requests import HTTPConnection
 
 from app.core.config import Settings
-from app.events.messages import DELETED_IDS_PER_MESSAGE, SnapshotsDeleted
+from app.events.messages import DELETED_IDS_PER_MESSAGE, CameraStatus, SnapshotsDeleted
 from app.sources.live import without_password
 from app.storage.db import Database
 from app.storage.files import SnapshotStore, prune, prune_to_size
 from app.vision.motion import DEFAULT_METHOD
 from app.workers.analysis import AnalysisLimits, AnalysisManager
 from app.workers.bus import EventBus
+from app.workers.camera import STATUS_FIELDS
 from app.workers.camera_host import Camera
 from app.workers.manager import CameraManager
 
@@ -154,6 +155,39 @@ class Services:
             self._cameras.stop_all(timeout=self.settings.read_timeout_ms / 1000 + 2.0)
         if self.db is not None:
             self.db.close()
+
+    def set_active(self, camera_id: int, active: bool) -> dict[str, Any] | None:
+        """Activate or Stop a camera (``POST /api/cameras/{id}/activate|stop``, MQTT's
+        ``active/set``); the camera as the API shows it, None when there is none."""
+        camera = self.database.update_camera(camera_id, active=int(active))
+        if camera is None:
+            return None
+        worker = self.cameras.get(camera_id)
+        if worker is not None:
+            worker.set_active(active)  # Its status (on /ws) follows at once.
+        return self.camera_view(camera)
+
+    def change_camera(
+        self, camera_id: int, before: dict[str, Any], changes: dict[str, Any]
+    ) -> dict[str, Any] | None:
+        """Apply checked ``changes`` to a camera whose row was ``before`` (``PATCH
+        /api/cameras/{id}``, MQTT's ``sensitivity/set``): stored, given to its worker (a new
+        worker for a new source), and told to every page. The camera as the API shows it;
+        None when there is none."""
+        camera = self.database.update_camera(camera_id, **changes)
+        if camera is None:
+            return None
+        worker = self.cameras.get(camera_id)
+        if worker is None or ("source" in changes and changes["source"] != before["source"]):
+            self.cameras.start(camera)
+        else:
+            worker.update(**changes)
+        view = self.camera_view(camera)
+        # Every page shows the change at once, not at its next listing of the cameras.
+        status = {key: view[key] for key in STATUS_FIELDS if key in view}
+        changed = {key: view[key] for key in changes}
+        self.bus.publish(CameraStatus(**{"camera_id": camera_id, **status, **changed}))
+        return view
 
     def camera_view(self, camera: dict[str, Any]) -> dict[str, Any]:
         """A camera as the API shows it: its settings (the source ``without_password``), its

@@ -13,6 +13,9 @@ from starlette.requests import HTTPConnection
 
 from app.core.config import Settings
 from app.events.messages import DELETED_IDS_PER_MESSAGE, CameraStatus, SnapshotsDeleted
+from app.mqtt.bridge import MqttBridge
+from app.mqtt.broker import Broker
+from app.mqtt.mirror import CameraInfo
 from app.sources.live import without_password
 from app.storage.db import Database
 from app.storage.files import SnapshotStore, prune, prune_to_size
@@ -39,6 +42,16 @@ class Services:
         self._analyses: AnalysisManager | None = None
         self._stopping = threading.Event()
         self._pruner: threading.Thread | None = None
+        self.mqtt: MqttBridge | None = None
+        """The MQTT bridge, with ``VIGIL_MQTT_URL``; run by the app's lifespan."""
+        if settings.mqtt_url:
+            self.mqtt = MqttBridge(
+                Broker.parse(settings.mqtt_url),
+                settings.mqtt_prefix,
+                settings.mqtt_discovery_prefix,
+                MqttControl(self),
+                settings.mqtt_reconnect_max_s,
+            )
 
     @property
     def database(self) -> Database:
@@ -124,6 +137,11 @@ class Services:
             chunk = ids[start : start + DELETED_IDS_PER_MESSAGE]
             self.bus.publish(SnapshotsDeleted(ids=chunk))
 
+    def mqtt_health(self) -> dict[str, Any]:
+        """``disabled`` without ``VIGIL_MQTT_URL``; else ``connected`` or ``disconnected``
+        (with the reason), the broker and since when."""
+        return {"state": "disabled"} if self.mqtt is None else self.mqtt.health()
+
     def storage(self) -> dict[str, Any]:
         """Free space, the snapshots' total and cap, and why snapshots fail (None: they don't)."""
         try:
@@ -205,6 +223,52 @@ class Services:
             "histogram": f"{base}/histogram.mjpg",
             "frame": f"{base}/frame.jpg",
         }
+
+
+class MqttControl:
+    """What the MQTT bridge reads and does (``app.mqtt.bridge.Control``), through the same
+    methods as the API."""
+
+    def __init__(self, services: Services) -> None:
+        self.services = services
+
+    def cameras(self) -> list[CameraInfo]:
+        return [
+            CameraInfo(
+                camera_id=camera.camera_id,
+                name=str(camera.row["name"]),
+                active=bool(camera.row.get("active")),
+                sensitivity=camera.row.get("sensitivity"),
+            )
+            for camera in self.services.cameras.all()
+        ]
+
+    def set_active(self, camera_id: int, active: bool) -> bool:
+        return self.services.set_active(camera_id, active) is not None
+
+    def set_sensitivity(self, camera_id: int, sensitivity: float | None) -> bool:
+        svc = self.services
+        before = svc.database.camera(camera_id)
+        changes = {"sensitivity": sensitivity}
+        return before is not None and svc.change_camera(camera_id, before, changes) is not None
+
+    def snapshot_jpeg(self, snapshot_id: int) -> bytes | None:
+        svc = self.services
+        row = svc.database.snapshot(snapshot_id)
+        if row is None:
+            return None
+        try:
+            return svc.snapshots.path(row["path"]).read_bytes()
+        except (OSError, ValueError):  # Deleted meanwhile; a path outside the folder.
+            return None
+
+    def latest_snapshots(self, camera_ids: list[int]) -> dict[int, int]:
+        latest = {}
+        for camera_id in camera_ids:
+            rows = self.services.database.snapshots(camera_id=camera_id, kind="frame", limit=1)
+            if rows:
+                latest[camera_id] = int(rows[0]["id"])
+        return latest
 
 
 def services(request: HTTPConnection) -> Services:

@@ -47,12 +47,19 @@ def create_app(settings: Settings | None = None) -> FastAPI:
 
     @asynccontextmanager
     async def lifespan(_: FastAPI) -> AsyncIterator[None]:
+        mqtt = services.mqtt
+        if mqtt is not None:  # Hears the bus from before the cameras start.
+            mqtt.subscribe(services.bus)
         await asyncio.to_thread(services.start)
+        if mqtt is not None:
+            mqtt.start()
         restore = _end_streams_on_signal(services)
         try:
             yield
         finally:
             restore()
+            if mqtt is not None:  # Its events end and it says offline, then the cameras stop.
+                await mqtt.stop()
             await asyncio.to_thread(services.stop)
 
     application = FastAPI(title="Vigil", version=vigil_package.__version__, lifespan=lifespan)

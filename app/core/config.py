@@ -4,7 +4,7 @@ from __future__ import annotations
 
 from pathlib import Path
 
-from pydantic import Field
+from pydantic import Field, field_validator
 from pydantic_settings import BaseSettings, SettingsConfigDict
 
 MAX_PORT = 65535
@@ -84,6 +84,38 @@ class Settings(BaseSettings):
     """Address space each analysis process may use (0 = no limit): a decoder that tries
     to allocate more fails that analysis instead of starving the machine."""
 
+    # MQTT and Home Assistant (docs/mqtt.md).
+    mqtt_url: str | None = Field(default=None, repr=False)
+    """The broker, ``mqtt://user:password@host:1883`` (``mqtts://`` for TLS, port 8883 by
+    default); unset or empty: no MQTT at all. Its password is never shown."""
+    mqtt_prefix: str = "vigil"
+    """The first level of every topic Vigil publishes and listens to."""
+    mqtt_discovery_prefix: str = "homeassistant"
+    """Home Assistant's discovery prefix; empty: no discovery messages."""
+    mqtt_reconnect_max_s: float = Field(default=30.0, ge=0.5)
+    """Longest wait between attempts to reach a broker that is down (the wait doubles from
+    half a second up to this)."""
+
+    @field_validator("mqtt_url")
+    @classmethod
+    def _check_mqtt_url(cls, value: str | None) -> str | None:
+        if value is None or not value.strip():
+            return None
+        from app.mqtt.broker import Broker  # Here: app.core imports nothing else of Vigil.
+
+        Broker.parse(value.strip())  # ValueError: the reason, never the password.
+        return value.strip()
+
+    @field_validator("mqtt_prefix")
+    @classmethod
+    def _check_mqtt_prefix(cls, value: str) -> str:
+        return _topic_prefix(value, "a topic prefix")
+
+    @field_validator("mqtt_discovery_prefix")
+    @classmethod
+    def _check_discovery_prefix(cls, value: str) -> str:
+        return _topic_prefix(value, "a discovery prefix") if value.strip() else ""
+
     @property
     def db_path(self) -> Path:
         return self.data_dir / "vigil.db"
@@ -95,3 +127,15 @@ class Settings(BaseSettings):
     @property
     def analyses_dir(self) -> Path:
         return self.data_dir / "analyses"
+
+
+def _topic_prefix(value: str, what: str) -> str:
+    """A prefix of MQTT topics: one or more levels, no wildcard, no empty level."""
+    value = value.strip()
+    if not value:
+        raise ValueError(f"{what} cannot be empty")
+    if any(c in value for c in "+#\0"):
+        raise ValueError(f"{what} cannot contain +, # or a NUL character")
+    if "" in value.split("/"):
+        raise ValueError(f"{what} cannot start or end with / or contain //")
+    return value

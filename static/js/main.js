@@ -4,6 +4,7 @@ import { Cameras } from "./api/cameras.js";
 import { ServerSocket } from "./api/socket.js";
 import { snapshotDeleted, snapshotIdOf, snapshotUrl } from "./api/snapshots.js";
 import { CameraFilter } from "./components/camera-filter.js";
+import { MqttBadge } from "./components/mqtt-badge.js";
 import { AlarmSound } from "./components/sound.js";
 import { Toasts } from "./components/toasts.js";
 import { $ } from "./lib/dom.js";
@@ -25,6 +26,7 @@ new ResizeObserver(() => {
 const toasts = new Toasts($("#toasts"), $("#toasts-more"));
 const sound = new AlarmSound($("#mute"));
 const cameras = new Cameras();
+const mqttBadge = new MqttBadge($("#mqtt-state"));
 const cameraFilter = new CameraFilter($("#gallery-filter select[name=camera_id]"), cameras);
 const socket = new ServerSocket($("#ws-state"), {
   opened(reconnected) {
@@ -32,6 +34,7 @@ const socket = new ServerSocket($("#ws-state"), {
     // Streams that were open when the server went away ended without an error event:
     // open every picture again (a restarted server may also have other cameras).
     if (reconnected) {
+      mqttBadge.refresh();
       grid.restartPictures();
       grid.load();
       gallery.load("shown");
@@ -126,6 +129,7 @@ grid.load().then(() => {
   alarms.loadRecent();
 });
 analyses.load();
+mqttBadge.start();
 socket.connect();
 setInterval(() => { if (socket.state !== "down") grid.load(); }, CAMERA_LISTING_MS);
 setInterval(() => grid.drawCharts(Date.now() / 1000), CHART_MS);

@@ -46,13 +46,20 @@ def create_app(settings: Settings | None = None) -> FastAPI:
 
     @asynccontextmanager
     async def lifespan(_: FastAPI) -> AsyncIterator[None]:
+        # The notifier hears the bus as a /ws client does, from before the cameras start.
+        heard = services.bus.subscribe()
         await asyncio.to_thread(services.start)
+        notifying = asyncio.create_task(services.notifier.follow(heard), name="notifier")
         restore = _end_streams_on_signal(services)
         try:
             yield
         finally:
             restore()
-            await asyncio.to_thread(services.stop)
+            await asyncio.to_thread(services.stop)  # Closes the bus: the notifier's end.
+            notifying.cancel()
+            with contextlib.suppress(asyncio.CancelledError):
+                await notifying
+            services.bus.unsubscribe(heard)
 
     application = FastAPI(title="Vigil", version=vigil_package.__version__, lifespan=lifespan)
     application.state.services = services

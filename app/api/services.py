@@ -1,4 +1,5 @@
-"""What the routers share: settings, database, snapshot files, workers and the message bus."""
+"""What the routers share: settings, database, snapshot files, workers, the message bus and
+the notifier."""
 
 from __future__ import annotations
 
@@ -13,6 +14,7 @@ from starlette.requests import HTTPConnection
 
 from app.core.config import Settings
 from app.events.messages import DELETED_IDS_PER_MESSAGE, SnapshotsDeleted
+from app.notify.notifier import Notifier
 from app.sources.live import without_password
 from app.storage.db import Database
 from app.storage.files import SnapshotStore, prune, prune_to_size
@@ -32,6 +34,8 @@ class Services:
         self.settings = settings
         self.closing = False
         self.bus = EventBus()
+        # Checks VIGIL_NOTIFY_URLS now: a URL Apprise cannot use stops the server's start.
+        self.notifier = Notifier(settings)
         self.db: Database | None = None
         self._snapshots: SnapshotStore | None = None
         self._cameras: CameraManager | None = None
@@ -70,6 +74,8 @@ class Services:
         self._snapshots = SnapshotStore(
             settings.snapshots_dir, on_deleted=self.announce_deleted_snapshots
         )
+        # Before the cameras: the first alarm finds every target ready.
+        self.notifier.start(self.db, self._snapshots)
         self._cameras = CameraManager(settings, self.bus)
         self._analyses = AnalysisManager(
             self.db,
@@ -152,6 +158,7 @@ class Services:
         if self._cameras is not None:
             # A worker blocked in a network read returns within the read timeout.
             self._cameras.stop_all(timeout=self.settings.read_timeout_ms / 1000 + 2.0)
+        self.notifier.stop()
         if self.db is not None:
             self.db.close()
 

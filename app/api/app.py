@@ -23,6 +23,7 @@ from app.api.routes import (
     cameras,
     events,
     health,
+    notifications,
     pages,
     snapshots,
     streams,
@@ -65,7 +66,8 @@ def create_app(settings: Settings | None = None) -> FastAPI:
     application.state.services = services
     application.state.settings = settings
     application.state.access = access
-    for module in (health, auth, cameras, streams, analyses, events, snapshots, ws, pages):
+    routers = (health, auth, cameras, streams, analyses, events, snapshots, notifications, ws)
+    for module in (*routers, pages):
         application.include_router(module.router)
     application.add_exception_handler(RequestValidationError, validation_error)
     if STATIC_DIR.is_dir():

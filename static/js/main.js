@@ -11,6 +11,7 @@ import { AlarmList, alarmToastHtml } from "./views/alarm-list.js";
 import { Analyses } from "./views/analyses.js";
 import { CameraGrid } from "./views/camera-grid.js";
 import { Gallery } from "./views/gallery.js";
+import { Notifications } from "./views/notifications.js";
 
 const CAMERA_LISTING_MS = 15000;  // Cameras added or deleted elsewhere show without /ws.
 const CHART_MS = 1000;
@@ -56,7 +57,10 @@ const grid = new CameraGrid({
   connection: socket,
   toasts,
   analysisStreams: () => analyses.streamCount(),
-  listed: () => cameraFilter.render(),
+  listed: () => {
+    cameraFilter.render();
+    notifications.camerasChanged();
+  },
 });
 const alarms = new AlarmList($("#alarm-list"), $("#clear-alarms"), {
   cameraName: (id) => cameras.name(id),
@@ -66,6 +70,7 @@ const alarms = new AlarmList($("#alarm-list"), $("#clear-alarms"), {
 const analyses = new Analyses($("#analyses"), $("#upload"), {
   streamsChanged: () => grid.assignPictureModes(),
 });
+const notifications = new Notifications($("#notifications"), cameras);
 const gallery = new Gallery($("#gallery"), {
   cameraName: (id) => cameras.name(id),
   noteCamera: (id) => cameraFilter.note(id),
@@ -81,6 +86,7 @@ function onAlarm(message) {
   sound.beep();
   grid.onAlarm(message.camera_id, message.ts);
   gallery.scheduleRefresh();
+  notifications.soon();
 }
 
 /* Snapshots deleted (by this page, or elsewhere as /ws tells): the alarms that showed them
@@ -126,6 +132,7 @@ grid.load().then(() => {
   alarms.loadRecent();
 });
 analyses.load();
+notifications.load();
 socket.connect();
 setInterval(() => { if (socket.state !== "down") grid.load(); }, CAMERA_LISTING_MS);
 setInterval(() => grid.drawCharts(Date.now() / 1000), CHART_MS);

@@ -180,3 +180,15 @@ def test_no_log_line_and_no_error_shown_holds_a_target_s_secret(
     assert "failing" in logged and f"127.0.0.1:{port}" in logged
     for text in (logged, str(state), tested):
         assert SECRET not in text and f"token={TOKEN}" not in text
+
+
+def test_targets_need_the_password_when_one_is_set(
+    serve: Callable[..., Running], webhook: WebhookReceiver
+) -> None:
+    server = serve(password="correct horse")
+    for method, path in [("GET", ""), ("POST", ""), ("DELETE", "/1"), ("POST", "/1/test")]:
+        answer = httpx.request(method, api(server) + path, json={"url": webhook.url()})
+        assert answer.status_code == 401, (method, path)
+    assert stored(server) == [] and webhook.attempts == 0
+    login = httpx.post(api(server), json={"url": webhook.url()}, auth=("vigil", "correct horse"))
+    assert login.status_code == 201

@@ -12,6 +12,7 @@ import httpx
 import pytest
 
 from tests.api.test_api_browser_dashboard import publish
+from tests.api.test_api_browser_editing import nowhere
 from tests.api.vigil_livekit import Running, add_camera, free_port, wait_for
 from tests.notify.receivers import WebhookReceiver
 from tests.notify.test_notify_delivery import snapshot_alarm
@@ -19,11 +20,6 @@ from tests.notify.test_notify_delivery import snapshot_alarm
 pytestmark = pytest.mark.browser
 
 SECRET = "s3cretPassw0rd"
-
-
-def nowhere() -> str:
-    """A camera source nothing answers at: its card shows, and it costs nothing."""
-    return f"http://127.0.0.1:{free_port()}/video.mjpg"
 
 
 def test_targets_are_added_tested_followed_and_removed_on_the_page(

@@ -259,3 +259,20 @@ def test_notify_urls_add_fixed_targets_at_start_and_a_bad_one_stops_the_start(
     with pytest.raises(ValueError, match="VIGIL_NOTIFY_URLS, URL 2: Apprise cannot use") as bad:
         create_app(Settings(data_dir=data, notify_urls=f"{webhook.url()} tgram://AAHsecret/1"))
     assert "AAHsecret" not in str(bad.value)
+
+
+def test_a_target_that_never_answers_keeps_only_its_newest_messages_waiting(
+    serve: Callable[..., Running], hanging_webhook: WebhookReceiver
+) -> None:
+    server = serve(notify_timeout_s=30.0)
+    target = add_target(server, hanging_webhook.url())
+    t0 = time.time()
+    publish(server, snapshot_alarm(server, 1, 1, t0))
+    wait_for(lambda: hanging_webhook.attempts == 1, 10, "the first message in flight")
+    for event in range(2, 26):  # 24 more events: 20 wait, the 4 oldest of them are dropped.
+        publish(server, snapshot_alarm(server, 1, event, t0 + event))
+    state = wait_for(
+        lambda: (s := target_state(server, target["id"]))["failed"] == 4 and s, 10, "drops"
+    )
+    assert state["pending"] == 20 and state["sent"] == 0 and state["failing"]
+    assert state["last_error"] == "a message dropped: 20 were waiting for the target"

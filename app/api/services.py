@@ -1,4 +1,5 @@
-"""What the routers share: settings, database, snapshot files, workers and the message bus."""
+"""What the routers share: settings, database, snapshot files, workers, the message bus and
+the notifier."""
 
 from __future__ import annotations
 
@@ -16,6 +17,7 @@ from app.events.messages import DELETED_IDS_PER_MESSAGE, CameraStatus, Snapshots
 from app.mqtt.bridge import MqttBridge
 from app.mqtt.broker import Broker
 from app.mqtt.mirror import CameraInfo
+from app.notify.notifier import Notifier
 from app.sources.live import without_password
 from app.storage.db import Database
 from app.storage.files import SnapshotStore, prune, prune_to_size
@@ -36,6 +38,8 @@ class Services:
         self.settings = settings
         self.closing = False
         self.bus = EventBus()
+        # Checks VIGIL_NOTIFY_URLS now: a URL Apprise cannot use stops the server's start.
+        self.notifier = Notifier(settings)
         self.db: Database | None = None
         self._snapshots: SnapshotStore | None = None
         self._cameras: CameraManager | None = None
@@ -84,6 +88,8 @@ class Services:
         self._snapshots = SnapshotStore(
             settings.snapshots_dir, on_deleted=self.announce_deleted_snapshots
         )
+        # Before the cameras: the first alarm finds every target ready.
+        self.notifier.start(self.db, self._snapshots)
         self._cameras = CameraManager(settings, self.bus)
         self._analyses = AnalysisManager(
             self.db,
@@ -171,6 +177,7 @@ class Services:
         if self._cameras is not None:
             # A worker blocked in a network read returns within the read timeout.
             self._cameras.stop_all(timeout=self.settings.read_timeout_ms / 1000 + 2.0)
+        self.notifier.stop()
         if self.db is not None:
             self.db.close()
 

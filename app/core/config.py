@@ -116,6 +116,38 @@ class Settings(BaseSettings):
     def _check_discovery_prefix(cls, value: str) -> str:
         return _topic_prefix(value, "a discovery prefix") if value.strip() else ""
 
+    # Notifications (app/notify, docs/notifications.md).
+    notify_urls: str = Field(default="", repr=False)
+    """Apprise URLs, separated by spaces, each added as a notification target at start
+    (``ntfys://my-topic tgram://bot-token/chat-id``). Kept while listed here; deleted when
+    no longer listed. Their secrets are shown masked."""
+    notify_gap_s: float = Field(default=30.0, ge=0)
+    """At most one message per event and target in this many seconds: an event's start
+    is always sent; its later alarms only once this long has passed since the last sent."""
+    public_url: str = ""
+    """The dashboard's address as its users reach it (``https://vigil.example.net``):
+    messages then carry links to the dashboard and the snapshot. Empty: no links."""
+    notify_timeout_s: float = Field(default=20.0, gt=0)
+    """Longest one attempt to send to a target may take (connecting, uploading the
+    snapshot, the answer); then it counts as failed."""
+    notify_retries: int = Field(default=3, ge=0, le=10)
+    """Attempts after the first for a message a target failed to take, waiting
+    ``notify_retry_s`` before the first retry and twice as long before each next."""
+    notify_retry_s: float = Field(default=2.0, gt=0)
+    """The wait before a failed message's first retry (doubled for each next one)."""
+
+    @field_validator("public_url")
+    @classmethod
+    def _check_public_url(cls, value: str) -> str:
+        value = value.strip().rstrip("/")
+        if value and not value.lower().startswith(("http://", "https://")):
+            raise ValueError("must start with http:// or https://")
+        return value
+
+    @property
+    def notify_url_list(self) -> list[str]:
+        return self.notify_urls.split()
+
     @property
     def db_path(self) -> Path:
         return self.data_dir / "vigil.db"

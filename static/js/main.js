@@ -12,6 +12,7 @@ import { AlarmList, alarmToastHtml } from "./views/alarm-list.js";
 import { Analyses } from "./views/analyses.js";
 import { CameraGrid } from "./views/camera-grid.js";
 import { Gallery } from "./views/gallery.js";
+import { Notifications } from "./views/notifications.js";
 
 const CAMERA_LISTING_MS = 15000;  // Cameras added or deleted elsewhere show without /ws.
 const CHART_MS = 1000;
@@ -59,7 +60,10 @@ const grid = new CameraGrid({
   connection: socket,
   toasts,
   analysisStreams: () => analyses.streamCount(),
-  listed: () => cameraFilter.render(),
+  listed: () => {
+    cameraFilter.render();
+    notifications.camerasChanged();
+  },
 });
 const alarms = new AlarmList($("#alarm-list"), $("#clear-alarms"), {
   cameraName: (id) => cameras.name(id),
@@ -69,6 +73,7 @@ const alarms = new AlarmList($("#alarm-list"), $("#clear-alarms"), {
 const analyses = new Analyses($("#analyses"), $("#upload"), {
   streamsChanged: () => grid.assignPictureModes(),
 });
+const notifications = new Notifications($("#notifications"), cameras);
 const gallery = new Gallery($("#gallery"), {
   cameraName: (id) => cameras.name(id),
   noteCamera: (id) => cameraFilter.note(id),
@@ -84,6 +89,7 @@ function onAlarm(message) {
   sound.beep();
   grid.onAlarm(message.camera_id, message.ts);
   gallery.scheduleRefresh();
+  notifications.soon();
 }
 
 /* Snapshots deleted (by this page, or elsewhere as /ws tells): the alarms that showed them
@@ -130,6 +136,7 @@ grid.load().then(() => {
 });
 analyses.load();
 mqttBadge.start();
+notifications.load();
 socket.connect();
 setInterval(() => { if (socket.state !== "down") grid.load(); }, CAMERA_LISTING_MS);
 setInterval(() => grid.drawCharts(Date.now() / 1000), CHART_MS);

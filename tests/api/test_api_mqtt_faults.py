@@ -43,8 +43,10 @@ def write_moving_video(path: Path, frames: int = 60) -> Path:
     return path
 
 
-def _mqtt_health(server: Running, within_s: float = 0.5) -> dict[str, object]:
-    """/api/health's ``mqtt``, answered within ``within_s`` seconds."""
+def _mqtt_health(server: Running, within_s: float = 2.0) -> dict[str, object]:
+    """/api/health's ``mqtt``, answered within ``within_s`` seconds: well under the 5 s a
+    publish waits for a hung broker's acknowledgement, with room for a loaded machine
+    (0.73 s seen at a load average of 12)."""
     started = time.monotonic()
     answer = httpx.get(f"{server.base}/api/health", timeout=5)
     took = time.monotonic() - started

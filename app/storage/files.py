@@ -14,6 +14,7 @@ from typing import IO, TYPE_CHECKING, Any, cast
 from app.core.atomic import write_atomic
 
 if TYPE_CHECKING:
+    from app.storage.clips import ClipStore
     from app.storage.db import Database
 
 
@@ -147,8 +148,15 @@ def stream_zip(files: Iterable[tuple[Path, str]], chunk_size: int = 1 << 16) -> 
         yield sink.take()
 
 
-def prune(db: Database, store: SnapshotStore, before: float, batch: int = 1000) -> int:
-    """Delete snapshots (rows and files) and finished events older than ``before``."""
+def prune(
+    db: Database,
+    store: SnapshotStore,
+    before: float,
+    batch: int = 1000,
+    clips: ClipStore | None = None,
+) -> int:
+    """Delete snapshots (rows and files), finished events with their clips, and the
+    activity history older than ``before``; how many snapshots and clips went."""
     removed = 0
     while True:
         rows = db.snapshots(until=before, limit=batch)
@@ -156,29 +164,63 @@ def prune(db: Database, store: SnapshotStore, before: float, batch: int = 1000) 
         if not rows:
             break
         removed += len(store.delete_snapshots(db, [r["id"] for r in rows]))
-    db.delete_events_before(before)
-    return removed
+    clip_paths = db.delete_events_before(before)
+    if clips is not None:
+        for relative in clip_paths:
+            clips.delete(relative)
+    return removed + len(clip_paths)
 
 
-def prune_to_size(db: Database, store: SnapshotStore, max_bytes: int, batch: int = 500) -> int:
-    """Delete the oldest snapshots until they total at most ``max_bytes``; returns how many.
+RETENTION = "deleted to stay under VIGIL_RETENTION_MB"
+"""An event's ``clip_error`` once the size cap has taken its clip."""
 
-    The running total in the database says when to stop, so a store under its cap
-    costs one query. An ended event goes with its last snapshot.
+
+def prune_to_size(
+    db: Database,
+    store: SnapshotStore,
+    max_bytes: int,
+    batch: int = 500,
+    clips: ClipStore | None = None,
+) -> int:
+    """Delete the oldest snapshots and clips until they total at most ``max_bytes``; returns
+    how many.
+
+    Oldest first, snapshots by their time and clips by their event's start, whichever is
+    older; a clip still being recorded stays. The running totals in the database say when
+    to stop, so a store under its cap costs two queries. An ended event goes with its last
+    snapshot and clip.
     """
     removed = 0
-    while (excess := db.snapshot_bytes() - max_bytes) > 0:
-        chosen: list[int] = []
-        for row in db.oldest_snapshots(batch):
-            chosen.append(row["id"])
-            excess -= row["size"]
+    while (excess := db.snapshot_bytes() + db.clip_bytes() - max_bytes) > 0:
+        candidates: list[tuple[float, int, str, int]] = [
+            (row["ts"], row["id"], "snapshot", row["size"]) for row in db.oldest_snapshots(batch)
+        ]
+        if clips is not None:
+            candidates += [
+                (row["started_at"], row["id"], "clip", row["clip_bytes"])
+                for row in db.oldest_clips(batch)
+            ]
+        candidates.sort()
+        chosen: dict[str, list[int]] = {"snapshot": [], "clip": []}
+        for _, row_id, kind, size in candidates[:batch]:
+            chosen[kind].append(row_id)
+            excess -= size
             if excess <= 0:
                 break
-        if not chosen:
+        if not chosen["snapshot"] and not chosen["clip"]:
             break
-        deleted = store.delete_snapshots(db, chosen)
-        removed += len(deleted)
-        db.delete_events_without_snapshots(
-            sorted({r["event_id"] for r in deleted if r["event_id"] is not None})
-        )
+        events: set[int] = set()
+        if chosen["snapshot"]:
+            deleted = store.delete_snapshots(db, chosen["snapshot"])
+            removed += len(deleted)
+            events.update(r["event_id"] for r in deleted if r["event_id"] is not None)
+        if clips is not None:
+            for event_id in chosen["clip"]:
+                event = db.event(event_id)
+                if event is not None and event["clip_path"]:
+                    db.drop_clip(event_id, RETENTION)
+                    clips.delete(event["clip_path"])
+                    removed += 1
+                    events.add(event_id)
+        db.delete_events_without_snapshots(sorted(events))
     return removed

@@ -1,0 +1,40 @@
+"""The pre-roll: an activated camera's last seconds of frames, kept as the camera gave them."""
+
+from __future__ import annotations
+
+from collections import deque
+
+from app.recording.mp4 import ClipFrame
+
+
+class PreRoll:
+    """The frames of the last ``seconds`` (by their monotonic times), at most ``max_bytes``
+    of them: past either, the oldest go. A JPEG camera's frames are its own JPEGs (about
+    40 KB at 640x480: 3 s at 25 fps hold 3 MB), referenced, not copied; a decoded
+    camera's are I420 (460 KB at 640x480), so ``max_bytes`` shortens its pre-roll at large
+    sizes rather than let it take the memory."""
+
+    def __init__(self, seconds: float, max_bytes: int) -> None:
+        self.seconds = seconds
+        self.max_bytes = max_bytes
+        self._frames: deque[ClipFrame] = deque()
+        self.nbytes = 0
+
+    def __len__(self) -> int:
+        return len(self._frames)
+
+    def add(self, frame: ClipFrame) -> None:
+        self._frames.append(frame)
+        self.nbytes += frame.nbytes
+        oldest = frame.mono - self.seconds
+        frames = self._frames
+        while frames and (frames[0].mono < oldest or self.nbytes > self.max_bytes):
+            self.nbytes -= frames.popleft().nbytes
+
+    def frames(self) -> list[ClipFrame]:
+        """What it holds, oldest first."""
+        return list(self._frames)
+
+    def clear(self) -> None:
+        self._frames.clear()
+        self.nbytes = 0

@@ -14,6 +14,7 @@ from starlette.requests import HTTPConnection
 from app.core.config import Settings
 from app.events.messages import DELETED_IDS_PER_MESSAGE, SnapshotsDeleted
 from app.sources.live import without_password
+from app.storage.clips import ClipStore, finish_unfinished
 from app.storage.db import Database
 from app.storage.files import SnapshotStore, prune, prune_to_size
 from app.vision.motion import DEFAULT_METHOD
@@ -34,6 +35,7 @@ class Services:
         self.bus = EventBus()
         self.db: Database | None = None
         self._snapshots: SnapshotStore | None = None
+        self._clips: ClipStore | None = None
         self._cameras: CameraManager | None = None
         self._analyses: AnalysisManager | None = None
         self._stopping = threading.Event()
@@ -49,6 +51,11 @@ class Services:
     def snapshots(self) -> SnapshotStore:
         assert self._snapshots is not None
         return self._snapshots
+
+    @property
+    def clips(self) -> ClipStore:
+        assert self._clips is not None
+        return self._clips
 
     @property
     def cameras(self) -> CameraManager:
@@ -70,6 +77,8 @@ class Services:
         self._snapshots = SnapshotStore(
             settings.snapshots_dir, on_deleted=self.announce_deleted_snapshots
         )
+        self._clips = ClipStore(settings.clips_dir)
+        finish_unfinished(self.db, self._clips)  # Clips the last run was recording.
         self._cameras = CameraManager(settings, self.bus)
         self._analyses = AnalysisManager(
             self.db,
@@ -100,15 +109,15 @@ class Services:
             try:
                 if settings.retention_days > 0:
                     before = time.time() - settings.retention_days * 86400
-                    removed = prune(self.database, self.snapshots, before)
+                    removed = prune(self.database, self.snapshots, before, clips=self.clips)
                     if removed:
-                        log.info("retention: removed %d old snapshots", removed)
+                        log.info("retention: removed %d old snapshots and clips", removed)
                 if settings.retention_mb > 0:
                     cap = int(settings.retention_mb * MB)
-                    removed = prune_to_size(self.database, self.snapshots, cap)
+                    removed = prune_to_size(self.database, self.snapshots, cap, clips=self.clips)
                     if removed:
                         log.info(
-                            "retention: removed %d snapshots to stay under %g MB",
+                            "retention: removed %d snapshots and clips to stay under %g MB",
                             removed,
                             settings.retention_mb,
                         )
@@ -124,7 +133,8 @@ class Services:
             self.bus.publish(SnapshotsDeleted(ids=chunk))
 
     def storage(self) -> dict[str, Any]:
-        """Free space, the snapshots' total and cap, and why snapshots fail (None: they don't)."""
+        """Free space, the snapshots' and clips' totals and cap, and why snapshots or clips
+        fail (None: they don't)."""
         try:
             free_mb: float | None = round(shutil.disk_usage(self.settings.data_dir).free / MB, 1)
         except OSError:
@@ -132,6 +142,7 @@ class Services:
         return {
             "free_mb": free_mb,
             "snapshots_mb": round(self.database.snapshot_bytes() / MB, 3),
+            "clips_mb": round(self.database.clip_bytes() / MB, 3),
             "cap_mb": self.settings.retention_mb or None,
             "error": self.cameras.storage_error(),
         }

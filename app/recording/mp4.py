@@ -19,8 +19,11 @@ from __future__ import annotations
 
 import contextlib
 import os
+import queue
+import threading
 from dataclasses import dataclass
 from fractions import Fraction
+from pathlib import Path
 from typing import Any, BinaryIO, cast
 
 import av
@@ -202,3 +205,46 @@ class H264Writer:
             return av.VideoFrame.from_ndarray(np.ascontiguousarray(image), format="bgr24")
         i420 = cast(U8Array, cv2.cvtColor(image, cv2.COLOR_BGR2YUV_I420))
         return av.VideoFrame.from_ndarray(i420, format="yuv420p")
+
+
+class BackgroundMp4:
+    """An ``H264Writer`` to a file, fed from one thread and encoding in another: ``vigil
+    analyze``'s ``annotated.mp4`` costs the analysis a colour conversion a frame, the
+    encoding going on beside it (on a second core, where there is one). Frames wait in a
+    short queue; when it is full, ``write`` waits: offline, no frame is dropped. An error
+    of the encoder or the disk is raised by the next ``write`` or by ``close``."""
+
+    QUEUE = 8
+
+    def __init__(self, path: Path, fps: float, settings: EncoderSettings | None = None) -> None:
+        self._file = path.open("wb", buffering=0)
+        self._writer = H264Writer(self._file, fps, settings)
+        self._queue: queue.Queue[tuple[ClipFrame, float] | None] = queue.Queue(self.QUEUE)
+        self._error: BaseException | None = None
+        self._thread = threading.Thread(target=self._run, name="annotated-mp4", daemon=True)
+        self._thread.start()
+
+    def write(self, image: Image, at_s: float) -> None:
+        if self._error is not None:
+            raise self._error
+        self._queue.put((decoded_clip_frame(image, at_s, at_s), at_s))
+
+    def close(self) -> None:
+        self._queue.put(None)
+        self._thread.join()
+        try:
+            if self._error is None:
+                self._writer.close()
+        finally:
+            self._file.close()
+        if self._error is not None:
+            raise self._error
+
+    def _run(self) -> None:
+        while (item := self._queue.get()) is not None:
+            if self._error is not None:
+                continue  # Drained, so that write() never waits on a full queue.
+            try:
+                self._writer.write(*item)
+            except BaseException as exc:  # Raised again in the analysis' own thread.
+                self._error = exc

@@ -10,6 +10,7 @@ import { $ } from "./lib/dom.js";
 import { AlarmList, alarmToastHtml } from "./views/alarm-list.js";
 import { Analyses } from "./views/analyses.js";
 import { CameraGrid } from "./views/camera-grid.js";
+import { EventsView } from "./views/events.js";
 import { Gallery } from "./views/gallery.js";
 
 const CAMERA_LISTING_MS = 15000;  // Cameras added or deleted elsewhere show without /ws.
@@ -26,6 +27,7 @@ const toasts = new Toasts($("#toasts"), $("#toasts-more"));
 const sound = new AlarmSound($("#mute"));
 const cameras = new Cameras();
 const cameraFilter = new CameraFilter($("#gallery-filter select[name=camera_id]"), cameras);
+const eventsFilter = new CameraFilter($("#events-filter select[name=camera_id]"), cameras);
 const socket = new ServerSocket($("#ws-state"), {
   opened(reconnected) {
     grid.updateAll();
@@ -36,12 +38,16 @@ const socket = new ServerSocket($("#ws-state"), {
       grid.load();
       gallery.load("shown");
       alarms.loadRecent();
+      events.load();
     }
   },
   closed: () => grid.updateAll(),
   handlers: {
     alarm: onAlarm,
-    motion_end: (message) => toasts.ended(`alarm:${alarms.end(message)}`),
+    motion_end: (message) => {
+      toasts.ended(`alarm:${alarms.end(message)}`);
+      events.heard();
+    },
     progress: (message) => analyses.onProgress(message),
     snapshots_deleted: (message) => onSnapshotsDeleted(message.ids),
     camera_status: (message) => grid.onStatus(message),
@@ -56,7 +62,10 @@ const grid = new CameraGrid({
   connection: socket,
   toasts,
   analysisStreams: () => analyses.streamCount(),
-  listed: () => cameraFilter.render(),
+  listed: () => {
+    cameraFilter.render();
+    eventsFilter.render();
+  },
 });
 const alarms = new AlarmList($("#alarm-list"), $("#clear-alarms"), {
   cameraName: (id) => cameras.name(id),
@@ -66,6 +75,7 @@ const alarms = new AlarmList($("#alarm-list"), $("#clear-alarms"), {
 const analyses = new Analyses($("#analyses"), $("#upload"), {
   streamsChanged: () => grid.assignPictureModes(),
 });
+const events = new EventsView($("#events"), { cameras, toasts });
 const gallery = new Gallery($("#gallery"), {
   cameraName: (id) => cameras.name(id),
   noteCamera: (id) => cameraFilter.note(id),
@@ -81,7 +91,16 @@ function onAlarm(message) {
   sound.beep();
   grid.onAlarm(message.camera_id, message.ts);
   gallery.scheduleRefresh();
+  events.heard();
 }
+
+/* "Play" on an alarm's toast or in the alarm list: its event in the Events section. */
+document.addEventListener("click", (event) => {
+  const link = event.target.closest?.(".open-event");
+  if (!link) return;
+  event.preventDefault();
+  events.open(Number(link.dataset.event));
+});
 
 /* Snapshots deleted (by this page, or elsewhere as /ws tells): the alarms that showed them
    say so, and the toasts that show them lose the picture (their words say enough). */
@@ -124,6 +143,7 @@ document.addEventListener("visibilitychange", () => {
 grid.load().then(() => {
   gallery.load("fresh");
   alarms.loadRecent();
+  events.load();
 });
 analyses.load();
 socket.connect();

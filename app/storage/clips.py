@@ -14,14 +14,12 @@ import contextlib
 import logging
 import os
 import struct
-import threading
-import time
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
 import av
 
-from app.storage.files import describe_write_error
+from app.storage.files import CameraFiles, dated
 
 if TYPE_CHECKING:
     from app.storage.db import Database
@@ -35,24 +33,15 @@ LARGE = struct.Struct(">Q")
 KILLED = "recording stopped early: the camera's process ended"
 
 
-class ClipStore:
-    """MP4 files under ``root/<camera id>/<day>/``; the database keeps paths relative to root.
+class ClipStore(CameraFiles):
+    """MP4 files under ``root/<camera id>/<day>/``; as ``SnapshotStore`` does for pictures,
+    it remembers per camera why the last clip could not be written, until one is."""
 
-    As ``SnapshotStore`` does for pictures, it remembers per camera why the last clip could
-    not be written, until one is.
-    """
-
-    def __init__(self, root: Path) -> None:
-        self.root = root
-        root.mkdir(parents=True, exist_ok=True)
-        self._failures: dict[int, str] = {}
-        self._lock = threading.Lock()
+    kind = "clip"
 
     def create(self, camera_id: int, ts: float, event_id: int) -> tuple[str, Path]:
         """A new clip's relative path and its folder made; OSError (noted) if the disk refuses."""
-        day = time.strftime("%Y-%m-%d", time.gmtime(ts))
-        stamp = time.strftime("%H%M%S", time.gmtime(ts)) + f"{int(ts * 1000) % 1000:03d}"
-        relative = f"{camera_id}/{day}/{stamp}-e{event_id}.mp4"
+        relative = dated(camera_id, ts, f"-e{event_id}.mp4")
         path = self.root / relative
         try:
             path.parent.mkdir(parents=True, exist_ok=True)
@@ -61,31 +50,9 @@ class ClipStore:
             raise
         return relative, path
 
-    def failed(self, camera_id: int, exc: OSError) -> str:
-        """Note why a clip of ``camera_id`` could not be written; the reason, for people."""
-        reason = describe_write_error(exc)
-        with self._lock:
-            self._failures[camera_id] = reason
-        return reason
-
-    def written(self, camera_id: int) -> None:
-        with self._lock:
-            self._failures.pop(camera_id, None)
-
-    def failure(self, camera_id: int) -> str | None:
-        """Why the camera's last clip could not be written; None once one is."""
-        with self._lock:
-            return self._failures.get(camera_id)
-
-    def path(self, relative: str) -> Path:
-        resolved = (self.root / relative).resolve()
-        if not resolved.is_relative_to(self.root.resolve()):
-            raise ValueError("clip path outside the clips folder")
-        return resolved
-
     def delete(self, relative: str) -> None:
-        with contextlib.suppress(FileNotFoundError, NotADirectoryError, ValueError):
-            self.path(relative).unlink()
+        with contextlib.suppress(ValueError):  # A path from elsewhere: nothing of ours.
+            super().delete(relative)
 
 
 def complete_length(path: Path) -> int:

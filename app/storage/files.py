@@ -37,54 +37,76 @@ def describe_write_error(exc: OSError) -> str:
     return known or f"cannot write ({exc.strerror or type(exc).__name__})"
 
 
-class SnapshotStore:
-    """JPEG files under ``root/<camera id>/<day>/``; the database keeps paths relative to root.
+def dated(camera_id: int, ts: float, suffix: str) -> str:
+    """``<camera id>/<day>/<HHMMSSmmm><suffix>``: a camera's file of time ``ts`` (UTC)."""
+    day = time.strftime("%Y-%m-%d", time.gmtime(ts))
+    stamp = time.strftime("%H%M%S", time.gmtime(ts)) + f"{int(ts * 1000) % 1000:03d}"
+    return f"{camera_id}/{day}/{stamp}{suffix}"
 
-    It remembers, per camera, why the last write failed until one succeeds, so a
-    burst of failures is reported once and its end is noticed. ``on_deleted`` is told of
-    every snapshot deleted through it, by hand or by retention (a batch at a time) alike.
-    """
 
-    def __init__(self, root: Path, on_deleted: SnapshotsDeleted | None = None) -> None:
+class CameraFiles:
+    """Files under ``root``, kept by their path relative to it (the database keeps that),
+    and per camera why the last write failed, until one succeeds: so a burst of failures
+    is reported once and its end is noticed. ``kind`` names the files in messages."""
+
+    kind = "file"
+
+    def __init__(self, root: Path) -> None:
         self.root = root
-        self.on_deleted = on_deleted
         root.mkdir(parents=True, exist_ok=True)
         self._failures: dict[int, str] = {}
         self._lock = threading.Lock()
 
-    def save(self, camera_id: int, ts: float, kind: str, data: bytes, event_id: int | None) -> str:
-        """Write one JPEG, durably: the row the caller adds next must not outlive its file.
+    def failed(self, camera_id: int, exc: OSError) -> str:
+        """Note why a write for ``camera_id`` failed; the reason, for people."""
+        reason = describe_write_error(exc)
+        with self._lock:
+            self._failures[camera_id] = reason
+        return reason
 
-        Raises OSError (disk full, read-only...), after noting the reason.
-        """
-        day = time.strftime("%Y-%m-%d", time.gmtime(ts))
-        stamp = time.strftime("%H%M%S", time.gmtime(ts)) + f"{int(ts * 1000) % 1000:03d}"
-        name = f"{stamp}-e{event_id or 0}-{kind}.jpg"
-        relative = f"{camera_id}/{day}/{name}"
-        try:
-            write_atomic(self.root / relative, data, durable=True)
-        except OSError as exc:
-            with self._lock:
-                self._failures[camera_id] = describe_write_error(exc)
-            raise
+    def written(self, camera_id: int) -> None:
         with self._lock:
             self._failures.pop(camera_id, None)
-        return relative
 
     def failure(self, camera_id: int) -> str | None:
-        """Why the camera's last snapshot could not be written; None once one succeeds."""
+        """Why the camera's last write failed; None once one succeeds."""
         with self._lock:
             return self._failures.get(camera_id)
 
     def path(self, relative: str) -> Path:
         resolved = (self.root / relative).resolve()
         if not resolved.is_relative_to(self.root.resolve()):
-            raise ValueError("snapshot path outside the snapshot folder")
+            raise ValueError(f"{self.kind} path outside the {self.kind} folder")
         return resolved
 
     def delete(self, relative: str) -> None:
         with contextlib.suppress(FileNotFoundError, NotADirectoryError):  # Already gone.
             self.path(relative).unlink()
+
+
+class SnapshotStore(CameraFiles):
+    """JPEG files under ``root/<camera id>/<day>/``. ``on_deleted`` is told of every
+    snapshot deleted through it, by hand or by retention (a batch at a time) alike."""
+
+    kind = "snapshot"
+
+    def __init__(self, root: Path, on_deleted: SnapshotsDeleted | None = None) -> None:
+        super().__init__(root)
+        self.on_deleted = on_deleted
+
+    def save(self, camera_id: int, ts: float, kind: str, data: bytes, event_id: int | None) -> str:
+        """Write one JPEG, durably: the row the caller adds next must not outlive its file.
+
+        Raises OSError (disk full, read-only...), after noting the reason.
+        """
+        relative = dated(camera_id, ts, f"-e{event_id or 0}-{kind}.jpg")
+        try:
+            write_atomic(self.root / relative, data, durable=True)
+        except OSError as exc:
+            self.failed(camera_id, exc)
+            raise
+        self.written(camera_id)
+        return relative
 
     def delete_snapshots(self, db: Database, ids: list[int]) -> list[dict[str, Any]]:
         """Delete those of ``ids`` that exist and tell ``on_deleted`` their ids (nothing when

@@ -8,7 +8,7 @@ PORT ?= 8000
 # One install at a time: `make -j test` would otherwise run two pip installs into the venv.
 .NOTPARALLEL:
 
-.PHONY: run test lint audit audit-code audit-deps format typecheck bench accuracy clean
+.PHONY: run test lint audit audit-code audit-deps format typecheck bench accuracy scenes clean
 
 $(BIN)/python:
 	$(PYTHON) -m venv $(VENV)
@@ -100,6 +100,10 @@ bench: $(VENV)/.installed-dev
 
 accuracy: $(VENV)/.installed-dev
 	$(BIN)/python bench/accuracy.py
+
+# The scene sweep against its checked-in baseline (bench/scenes_baseline.json).
+scenes: $(VENV)/.installed-dev $(VENV)/.kernels
+	$(BIN)/python bench/scenes.py --jobs 2
 
 clean:
 	rm -rf $(VENV) .pytest_cache .mypy_cache .ruff_cache *.egg-info

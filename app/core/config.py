@@ -5,7 +5,7 @@ from __future__ import annotations
 from pathlib import Path
 from typing import Literal
 
-from pydantic import Field
+from pydantic import Field, field_validator
 from pydantic_settings import BaseSettings, SettingsConfigDict
 
 MAX_PORT = 65535
@@ -105,6 +105,70 @@ class Settings(BaseSettings):
     """Address space each analysis process may use (0 = no limit): a decoder that tries
     to allocate more fails that analysis instead of starving the machine."""
 
+    # MQTT and Home Assistant (docs/mqtt.md).
+    mqtt_url: str | None = Field(default=None, repr=False)
+    """The broker, ``mqtt://user:password@host:1883`` (``mqtts://`` for TLS, port 8883 by
+    default); unset or empty: no MQTT at all. Its password is never shown."""
+    mqtt_prefix: str = "vigil"
+    """The first level of every topic Vigil publishes and listens to."""
+    mqtt_discovery_prefix: str = "homeassistant"
+    """Home Assistant's discovery prefix; empty: no discovery messages."""
+    mqtt_reconnect_max_s: float = Field(default=30.0, ge=0.5)
+    """Longest wait between attempts to reach a broker that is down (the wait doubles from
+    half a second up to this)."""
+
+    @field_validator("mqtt_url")
+    @classmethod
+    def _check_mqtt_url(cls, value: str | None) -> str | None:
+        if value is None or not value.strip():
+            return None
+        from app.mqtt.broker import Broker  # Here: app.core imports nothing else of Vigil.
+
+        Broker.parse(value.strip())  # ValueError: the reason, never the password.
+        return value.strip()
+
+    @field_validator("mqtt_prefix")
+    @classmethod
+    def _check_mqtt_prefix(cls, value: str) -> str:
+        return _topic_prefix(value, "a topic prefix")
+
+    @field_validator("mqtt_discovery_prefix")
+    @classmethod
+    def _check_discovery_prefix(cls, value: str) -> str:
+        return _topic_prefix(value, "a discovery prefix") if value.strip() else ""
+
+    # Notifications (app/notify, docs/notifications.md).
+    notify_urls: str = Field(default="", repr=False)
+    """Apprise URLs, separated by spaces, each added as a notification target at start
+    (``ntfys://my-topic tgram://bot-token/chat-id``). Kept while listed here; deleted when
+    no longer listed. Their secrets are shown masked."""
+    notify_gap_s: float = Field(default=30.0, ge=0)
+    """At most one message per event and target in this many seconds: an event's start
+    is always sent; its later alarms only once this long has passed since the last sent."""
+    public_url: str = ""
+    """The dashboard's address as its users reach it (``https://vigil.example.net``):
+    messages then carry links to the dashboard and the snapshot. Empty: no links."""
+    notify_timeout_s: float = Field(default=20.0, gt=0)
+    """Longest one attempt to send to a target may take (connecting, uploading the
+    snapshot, the answer); then it counts as failed."""
+    notify_retries: int = Field(default=3, ge=0, le=10)
+    """Attempts after the first for a message a target failed to take, waiting
+    ``notify_retry_s`` before the first retry and twice as long before each next."""
+    notify_retry_s: float = Field(default=2.0, gt=0)
+    """The wait before a failed message's first retry (doubled for each next one)."""
+
+    @field_validator("public_url")
+    @classmethod
+    def _check_public_url(cls, value: str) -> str:
+        value = value.strip().rstrip("/")
+        if value and not value.lower().startswith(("http://", "https://")):
+            raise ValueError("must start with http:// or https://")
+        return value
+
+    @property
+    def notify_url_list(self) -> list[str]:
+        return self.notify_urls.split()
+
     @property
     def db_path(self) -> Path:
         return self.data_dir / "vigil.db"
@@ -120,3 +184,15 @@ class Settings(BaseSettings):
     @property
     def analyses_dir(self) -> Path:
         return self.data_dir / "analyses"
+
+
+def _topic_prefix(value: str, what: str) -> str:
+    """A prefix of MQTT topics: one or more levels, no wildcard, no empty level."""
+    value = value.strip()
+    if not value:
+        raise ValueError(f"{what} cannot be empty")
+    if any(c in value for c in "+#\0"):
+        raise ValueError(f"{what} cannot contain +, # or a NUL character")
+    if "" in value.split("/"):
+        raise ValueError(f"{what} cannot start or end with / or contain //")
+    return value

@@ -1,4 +1,5 @@
-"""SQLite (stdlib sqlite3, WAL mode): cameras, events, snapshots and analyses.
+"""SQLite (stdlib sqlite3, WAL mode): cameras, events, snapshots, analyses and notification
+targets.
 
 One connection shared by every thread behind a lock: writes are small and
 rare (an event, a snapshot, a setting), so a lock is simpler than a pool and
@@ -80,6 +81,16 @@ CREATE TABLE IF NOT EXISTS analyses (
     created_at REAL NOT NULL,
     finished_at REAL
 );
+-- Where notifications go: Apprise URLs (app/notify). cameras: a JSON list of camera ids,
+-- NULL for every camera. origin: 'api' (the API or the page) or 'env' (VIGIL_NOTIFY_URLS).
+CREATE TABLE IF NOT EXISTS notification_targets (
+    id INTEGER PRIMARY KEY AUTOINCREMENT,
+    url TEXT NOT NULL,
+    cameras TEXT,
+    origin TEXT NOT NULL DEFAULT 'api',
+    created_at REAL NOT NULL
+);
+CREATE UNIQUE INDEX IF NOT EXISTS notification_targets_url ON notification_targets (url);
 """
 
 CAMERA_FIELDS = (
@@ -580,6 +591,57 @@ class Database:
                 (reason, time.time()),
             ).rowcount
 
+    # Notification targets ------------------------------------------------------------------
+
+    def add_target(self, url: str, cameras: Sequence[int] | None, origin: str = "api") -> int:
+        """A new target; sqlite3.IntegrityError if one has this URL already."""
+        with self._tx() as conn:
+            cur = conn.execute(
+                "INSERT INTO notification_targets (url, cameras, origin, created_at)"
+                " VALUES (?, ?, ?, ?)",
+                (url, _json_or_null(cameras), origin, time.time()),
+            )
+            return int(cur.lastrowid or 0)
+
+    def targets(self) -> list[dict[str, Any]]:
+        rows = self._query("SELECT * FROM notification_targets ORDER BY id")
+        return [_target(r) for r in rows]
+
+    def target(self, target_id: int) -> dict[str, Any] | None:
+        if not _is_row_id(target_id):
+            return None
+        row = self._query_one("SELECT * FROM notification_targets WHERE id = ?", (target_id,))
+        return _target(row) if row else None
+
+    def delete_target(self, target_id: int) -> bool:
+        if not _is_row_id(target_id):
+            return False
+        with self._tx() as conn:
+            deleted = conn.execute("DELETE FROM notification_targets WHERE id = ?", (target_id,))
+            return deleted.rowcount > 0
+
+    def sync_env_targets(self, urls: Sequence[str]) -> tuple[int, int]:
+        """Make the targets of origin ``env`` those of ``urls`` (VIGIL_NOTIFY_URLS): the
+        ones no longer listed are deleted, the new ones added (a URL already a target, of
+        any origin, stays as it is). How many were added and deleted."""
+        wanted = list(dict.fromkeys(urls))
+        with self._tx() as conn:
+            listed = [
+                (row["id"], row["url"], row["origin"])
+                for row in conn.execute("SELECT id, url, origin FROM notification_targets")
+            ]
+            gone = [(i,) for i, url, origin in listed if origin == "env" and url not in wanted]
+            conn.executemany("DELETE FROM notification_targets WHERE id = ?", gone)
+            known = {url for _, url, _ in listed}
+            new = [url for url in wanted if url not in known]
+            now = time.time()
+            conn.executemany(
+                "INSERT INTO notification_targets (url, cameras, origin, created_at)"
+                " VALUES (?, NULL, 'env', ?)",
+                [(url, now) for url in new],
+            )
+        return len(new), len(gone)
+
 
 def _statements(script: str) -> list[str]:
     """The statements of ``script`` (one per ``;`` at a line's end, triggers whole)."""
@@ -639,6 +701,16 @@ def _analysis(row: sqlite3.Row) -> dict[str, Any]:
     out = dict(row)
     out["options"] = json.loads(out["options"])
     return out
+
+
+def _target(row: sqlite3.Row) -> dict[str, Any]:
+    out = dict(row)
+    out["cameras"] = None if out["cameras"] is None else json.loads(out["cameras"])
+    return out
+
+
+def _json_or_null(value: Sequence[int] | None) -> str | None:
+    return None if value is None else json.dumps(list(value))
 
 
 def _is_row_id(value: int) -> bool:

@@ -4,6 +4,7 @@ import { Cameras } from "./api/cameras.js";
 import { ServerSocket } from "./api/socket.js";
 import { snapshotDeleted, snapshotIdOf, snapshotUrl } from "./api/snapshots.js";
 import { CameraFilter } from "./components/camera-filter.js";
+import { MqttBadge } from "./components/mqtt-badge.js";
 import { AlarmSound } from "./components/sound.js";
 import { Toasts } from "./components/toasts.js";
 import { $ } from "./lib/dom.js";
@@ -12,6 +13,7 @@ import { Analyses } from "./views/analyses.js";
 import { CameraGrid } from "./views/camera-grid.js";
 import { EventsView } from "./views/events.js";
 import { Gallery } from "./views/gallery.js";
+import { Notifications } from "./views/notifications.js";
 
 const CAMERA_LISTING_MS = 15000;  // Cameras added or deleted elsewhere show without /ws.
 const CHART_MS = 1000;
@@ -26,6 +28,7 @@ new ResizeObserver(() => {
 const toasts = new Toasts($("#toasts"), $("#toasts-more"));
 const sound = new AlarmSound($("#mute"));
 const cameras = new Cameras();
+const mqttBadge = new MqttBadge($("#mqtt-state"));
 const cameraFilter = new CameraFilter($("#gallery-filter select[name=camera_id]"), cameras);
 const eventsFilter = new CameraFilter($("#events-filter select[name=camera_id]"), cameras);
 const socket = new ServerSocket($("#ws-state"), {
@@ -34,6 +37,7 @@ const socket = new ServerSocket($("#ws-state"), {
     // Streams that were open when the server went away ended without an error event:
     // open every picture again (a restarted server may also have other cameras).
     if (reconnected) {
+      mqttBadge.refresh();
       grid.restartPictures();
       grid.load();
       gallery.load("shown");
@@ -65,6 +69,7 @@ const grid = new CameraGrid({
   listed: () => {
     cameraFilter.render();
     eventsFilter.render();
+    notifications.camerasChanged();
   },
 });
 const alarms = new AlarmList($("#alarm-list"), $("#clear-alarms"), {
@@ -76,6 +81,7 @@ const analyses = new Analyses($("#analyses"), $("#upload"), {
   streamsChanged: () => grid.assignPictureModes(),
 });
 const events = new EventsView($("#events"), { cameras, toasts });
+const notifications = new Notifications($("#notifications"), cameras);
 const gallery = new Gallery($("#gallery"), {
   cameraName: (id) => cameras.name(id),
   noteCamera: (id) => cameraFilter.note(id),
@@ -92,6 +98,7 @@ function onAlarm(message) {
   grid.onAlarm(message.camera_id, message.ts);
   gallery.scheduleRefresh();
   events.heard();
+  notifications.soon();
 }
 
 /* "Play" on an alarm's toast or in the alarm list: its event in the Events section. */
@@ -146,6 +153,8 @@ grid.load().then(() => {
   events.load();
 });
 analyses.load();
+mqttBadge.start();
+notifications.load();
 socket.connect();
 setInterval(() => { if (socket.state !== "down") grid.load(); }, CAMERA_LISTING_MS);
 setInterval(() => grid.drawCharts(Date.now() / 1000), CHART_MS);

@@ -9,6 +9,8 @@ import httpx
 from prometheus_client.parser import text_string_to_metric_families
 
 from tests.api.vigil_livekit import Running, WsClient, add_camera, wait_for
+from tests.mqtt.mosquitto import Mosquitto
+from tests.notify.receivers import WebhookReceiver
 
 PASSWORD = "metrics-secret-42"
 Samples = dict[tuple[str, tuple[tuple[str, str], ...]], float]
@@ -78,3 +80,35 @@ def test_metrics_need_the_password_and_take_basic_auth(serve: Callable[..., Runn
     assert httpx.get(f"{server.base}/metrics").status_code == 401
     samples = scrape(server, auth=("prometheus", PASSWORD))
     assert any(name == "vigil_camera_up" for name, _ in samples)
+
+
+def test_metrics_count_notifications_by_target(
+    serve: Callable[..., Running], motion_video: Path
+) -> None:
+    webhook = WebhookReceiver().start()
+    try:
+        server = serve()
+        answer = httpx.post(f"{server.base}/api/notifications", json={"url": webhook.url()})
+        target = (("service", "JSON"), ("target", str(answer.json()["id"])))
+        add_camera(server.base, f"file://{motion_video}", activate=True)
+        webhook.wait(1, timeout=30)
+        samples = poll(
+            server,
+            lambda s: s.get(("vigil_notifications_sent_total", target)) == 1,
+            "the message counted",
+        )
+    finally:
+        webhook.stop()
+    assert samples[("vigil_notifications_failed_total", target)] == 0
+
+
+def test_metrics_say_whether_mqtt_is_connected(
+    serve: Callable[..., Running], mosquitto: Callable[..., Mosquitto], tmp_path: Path
+) -> None:
+    without = serve()
+    assert not any(name == "vigil_mqtt_connected" for name, _ in scrape(without))
+    broker = mosquitto()
+    server = serve(tmp_path / "with", mqtt_url=broker.url, mqtt_reconnect_max_s=0.5)
+    poll(server, lambda s: s.get(("vigil_mqtt_connected", ())) == 1, "MQTT connected")
+    broker.stop()
+    poll(server, lambda s: s.get(("vigil_mqtt_connected", ())) == 0, "MQTT down")

@@ -267,7 +267,7 @@ class Recorder:
         """Event ``event_id`` starts with the frame about to be fed: record its clip."""
         if not self.enabled or event_id in self._recording:
             return
-        first = [f for f in self.preroll.frames() if f.mono >= mono - self.pre_roll_s]
+        first = self.preroll.since(mono - self.pre_roll_s) if self.pre_roll_s > 0 else []
         try:
             relative, _ = self.store.create(self.camera_id, wall, event_id)
         except OSError:

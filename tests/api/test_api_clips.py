@@ -111,11 +111,12 @@ def test_the_clip_decodes_to_its_length_at_the_cameras_rate(recorded: Recorded) 
 
 
 def test_the_clip_starts_the_pre_roll_before_the_first_moving_frame(recorded: Recorded) -> None:
-    """Its first frame is ``PRE_ROLL_S`` before the event's (within a frame); what it shows
-    is the still scene, and the frame that far into the clip is the event's first."""
+    """Its first frame is the one showing ``PRE_ROLL_S`` before the event's, so at most a
+    frame period earlier (and a few ms of a loaded machine's timing); what it shows is the
+    still scene, and the frame that far into the clip is the event's first."""
     event = recorded.event
     pre_roll = event["started_at"] - event["clip_started_at"]
-    assert pre_roll == pytest.approx(PRE_ROLL_S, abs=1 / FPS)
+    assert PRE_ROLL_S <= pre_roll < PRE_ROLL_S + 1 / FPS + 0.02, pre_roll
     frames, times, _ = decode(recorded.clip, recorded.folder / "b.mp4")
     shown = [_square_index(f) for f in frames]
     assert shown[0] is None, "the pre-roll: the scene before the square came"

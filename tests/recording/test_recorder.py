@@ -102,7 +102,8 @@ def test_decoded_frames_are_recorded_too(tmp_path: Path) -> None:
         recorder.feed(DecodedFrame(frame_at(i)), i >= 10, 1000.0 + i / FPS, 0.0)
     recorder.stop()
     row = _finished(db, event)
-    assert len(_times(tmp_path / "data" / "clips" / row["clip_path"])) == 7 + 10  # 0.5 s: 7
+    # From frame 2, which was showing 0.5 s before frame 10 (0.53 s before it): 8 frames.
+    assert len(_times(tmp_path / "data" / "clips" / row["clip_path"])) == 8 + 10
     assert recorder.preroll.nbytes == 0
 
 

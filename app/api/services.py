@@ -19,6 +19,7 @@ from app.mqtt.broker import Broker
 from app.mqtt.mirror import CameraInfo
 from app.notify.notifier import Notifier
 from app.sources.live import without_password
+from app.storage.clips import ClipStore, finish_unfinished
 from app.storage.db import Database
 from app.storage.files import SnapshotStore, prune, prune_to_size
 from app.vision.motion import DEFAULT_METHOD
@@ -42,6 +43,7 @@ class Services:
         self.notifier = Notifier(settings)
         self.db: Database | None = None
         self._snapshots: SnapshotStore | None = None
+        self._clips: ClipStore | None = None
         self._cameras: CameraManager | None = None
         self._analyses: AnalysisManager | None = None
         self._stopping = threading.Event()
@@ -69,6 +71,11 @@ class Services:
         return self._snapshots
 
     @property
+    def clips(self) -> ClipStore:
+        assert self._clips is not None
+        return self._clips
+
+    @property
     def cameras(self) -> CameraManager:
         assert self._cameras is not None
         return self._cameras
@@ -88,6 +95,8 @@ class Services:
         self._snapshots = SnapshotStore(
             settings.snapshots_dir, on_deleted=self.announce_deleted_snapshots
         )
+        self._clips = ClipStore(settings.clips_dir)
+        finish_unfinished(self.db, self._clips)  # Clips the last run was recording.
         # Before the cameras: the first alarm finds every target ready.
         self.notifier.start(self.db, self._snapshots)
         self._cameras = CameraManager(settings, self.bus)
@@ -120,15 +129,15 @@ class Services:
             try:
                 if settings.retention_days > 0:
                     before = time.time() - settings.retention_days * 86400
-                    removed = prune(self.database, self.snapshots, before)
+                    removed = prune(self.database, self.snapshots, before, clips=self.clips)
                     if removed:
-                        log.info("retention: removed %d old snapshots", removed)
+                        log.info("retention: removed %d old snapshots and clips", removed)
                 if settings.retention_mb > 0:
                     cap = int(settings.retention_mb * MB)
-                    removed = prune_to_size(self.database, self.snapshots, cap)
+                    removed = prune_to_size(self.database, self.snapshots, cap, clips=self.clips)
                     if removed:
                         log.info(
-                            "retention: removed %d snapshots to stay under %g MB",
+                            "retention: removed %d snapshots and clips to stay under %g MB",
                             removed,
                             settings.retention_mb,
                         )
@@ -149,7 +158,8 @@ class Services:
         return {"state": "disabled"} if self.mqtt is None else self.mqtt.health()
 
     def storage(self) -> dict[str, Any]:
-        """Free space, the snapshots' total and cap, and why snapshots fail (None: they don't)."""
+        """Free space, the snapshots' and clips' totals and cap, and why snapshots or clips
+        fail (None: they don't)."""
         try:
             free_mb: float | None = round(shutil.disk_usage(self.settings.data_dir).free / MB, 1)
         except OSError:
@@ -157,6 +167,7 @@ class Services:
         return {
             "free_mb": free_mb,
             "snapshots_mb": round(self.database.snapshot_bytes() / MB, 3),
+            "clips_mb": round(self.database.clip_bytes() / MB, 3),
             "cap_mb": self.settings.retention_mb or None,
             "error": self.cameras.storage_error(),
         }

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 from pathlib import Path
+from typing import Literal
 
 from pydantic import Field, field_validator
 from pydantic_settings import BaseSettings, SettingsConfigDict
@@ -18,7 +19,7 @@ class Settings(BaseSettings):
     host: str = "127.0.0.1"
     port: int = Field(default=8000, ge=1, le=MAX_PORT)
     data_dir: Path = Path("data")
-    """Holds vigil.db (SQLite), snapshots/ and analyses/."""
+    """Holds vigil.db (SQLite), snapshots/, clips/ and analyses/."""
     password: str | None = Field(default=None, repr=False)
     """When set, every page and API call needs a login (``/login``) or HTTP basic auth with
     this password. The app keeps only its scrypt hash."""
@@ -66,12 +67,32 @@ class Settings(BaseSettings):
     of the last ones is the scene, so what is in view then and moving leaves no ghost."""
 
     retention_days: float = Field(default=30.0, ge=0)
-    """Snapshots and finished events older than this are deleted (0 = keep forever)."""
+    """Snapshots, clips, activity and finished events older than this are deleted (0 = keep
+    forever)."""
     retention_mb: float = Field(default=2048.0, ge=0)
-    """Cap on the snapshots' total size: the oldest go first, and an ended event with
-    its last snapshot (0 = no cap)."""
+    """Cap on the snapshots' and clips' total size: the oldest go first, and an ended event
+    with its last snapshot and clip (0 = no cap)."""
     retention_interval_s: float = Field(default=60.0, gt=0)
     """How often both limits are applied (and once at start)."""
+
+    # Recordings (app/recording/).
+    clips: bool = True
+    """Record a clip of each event of an activated camera (H.264 in MP4)."""
+    pre_roll_s: float = Field(default=3.0, ge=0, le=60)
+    """Seconds of video a clip starts before the event's first moving frame."""
+    post_roll_s: float = Field(default=2.0, ge=0, le=60)
+    """Seconds of video a clip goes on after the event's last moving frame."""
+    pre_roll_mb: float = Field(default=64.0, gt=0)
+    """Memory an activated camera's pre-roll may take: frames beyond it are let go, oldest
+    first, and the clip starts later (a decoded camera's frames are large: 0.45 MB at
+    640x480; a JPEG camera's are its JPEGs). Also what frames waiting for a clip's encoder
+    may take: past it, the clip loses frames, never detection."""
+    clip_preset: Literal["ultrafast", "superfast", "veryfast", "faster", "fast", "medium"] = (
+        "ultrafast"
+    )
+    """libx264's preset for clips and annotated.mp4 (bench/bench_recording.py)."""
+    clip_crf: int = Field(default=26, ge=0, le=51)
+    """libx264's constant rate factor: lower is better looking and larger."""
 
     # Uploads.
     analysis_workers: int = Field(default=1, ge=1)
@@ -155,6 +176,10 @@ class Settings(BaseSettings):
     @property
     def snapshots_dir(self) -> Path:
         return self.data_dir / "snapshots"
+
+    @property
+    def clips_dir(self) -> Path:
+        return self.data_dir / "clips"
 
     @property
     def analyses_dir(self) -> Path:

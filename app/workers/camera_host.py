@@ -32,6 +32,8 @@ import cv2
 
 from app.core.config import Settings
 from app.events.messages import CameraStatus, Wire, WsMessage
+from app.recording.recorder import clip_url
+from app.storage.clips import ClipStore, finish_unfinished
 from app.storage.db import Database
 from app.storage.files import SnapshotStore
 from app.vision.pipeline import warm_up
@@ -190,6 +192,7 @@ def run_cameras(conn: Connection, settings: Settings) -> None:
     link = _Link(conn)
     db = Database(settings.db_path)
     snapshots = SnapshotStore(settings.snapshots_dir)
+    clips = ClipStore(settings.clips_dir)
     sender = _FrameSender(link)
     workers: dict[int, CameraWorker] = {}
 
@@ -212,7 +215,7 @@ def run_cameras(conn: Connection, settings: Settings) -> None:
                 remove(row["id"])
                 worker_link = _WorkerLink(link, generation)
                 if recovering:  # The process before this one died with its events open.
-                    _end_events(db, worker_link, row["id"])
+                    _end_events(db, worker_link, row["id"], clips)
                 sender.start(row["id"], generation)
                 worker = CameraWorker(row, settings, db, snapshots, worker_link)
                 worker.hub.on_publish = lambda item, cid=row["id"]: sender.offer(cid, item)
@@ -237,12 +240,25 @@ def run_cameras(conn: Connection, settings: Settings) -> None:
             db.close()
 
 
-def _end_events(db: Database, link: _WorkerLink, camera_id: int) -> None:
+def _end_events(
+    db: Database, link: _WorkerLink, camera_id: int, clips: ClipStore | None = None
+) -> None:
+    """The camera's process died: its open events end, and its clips being recorded are
+    finished as far as they got."""
+    if clips is not None:
+        finish_unfinished(db, clips, camera_id)
     for event in db.close_open_events(camera_id):
         duration_s = event["ended_at"] - event["started_at"]
+        clip = clip_url(event["id"]) if event["clip_path"] else None
         link.publish(
             motion_end_message(
-                camera_id, event["id"], event["ended_at"], duration_s, event["max_area"]
+                camera_id,
+                event["id"],
+                event["ended_at"],
+                duration_s,
+                event["max_area"],
+                clip,
+                event["clip_s"] if clip else None,
             )
         )
 

@@ -11,6 +11,7 @@ import { $ } from "./lib/dom.js";
 import { AlarmList, alarmToastHtml } from "./views/alarm-list.js";
 import { Analyses } from "./views/analyses.js";
 import { CameraGrid } from "./views/camera-grid.js";
+import { EventsView } from "./views/events.js";
 import { Gallery } from "./views/gallery.js";
 import { Notifications } from "./views/notifications.js";
 
@@ -29,6 +30,7 @@ const sound = new AlarmSound($("#mute"));
 const cameras = new Cameras();
 const mqttBadge = new MqttBadge($("#mqtt-state"));
 const cameraFilter = new CameraFilter($("#gallery-filter select[name=camera_id]"), cameras);
+const eventsFilter = new CameraFilter($("#events-filter select[name=camera_id]"), cameras);
 const socket = new ServerSocket($("#ws-state"), {
   opened(reconnected) {
     grid.updateAll();
@@ -40,12 +42,16 @@ const socket = new ServerSocket($("#ws-state"), {
       grid.load();
       gallery.load("shown");
       alarms.loadRecent();
+      events.load();
     }
   },
   closed: () => grid.updateAll(),
   handlers: {
     alarm: onAlarm,
-    motion_end: (message) => toasts.ended(`alarm:${alarms.end(message)}`),
+    motion_end: (message) => {
+      toasts.ended(`alarm:${alarms.end(message)}`);
+      events.heard();
+    },
     progress: (message) => analyses.onProgress(message),
     snapshots_deleted: (message) => onSnapshotsDeleted(message.ids),
     camera_status: (message) => grid.onStatus(message),
@@ -62,6 +68,7 @@ const grid = new CameraGrid({
   analysisStreams: () => analyses.streamCount(),
   listed: () => {
     cameraFilter.render();
+    eventsFilter.render();
     notifications.camerasChanged();
   },
 });
@@ -73,6 +80,7 @@ const alarms = new AlarmList($("#alarm-list"), $("#clear-alarms"), {
 const analyses = new Analyses($("#analyses"), $("#upload"), {
   streamsChanged: () => grid.assignPictureModes(),
 });
+const events = new EventsView($("#events"), { cameras, toasts });
 const notifications = new Notifications($("#notifications"), cameras);
 const gallery = new Gallery($("#gallery"), {
   cameraName: (id) => cameras.name(id),
@@ -89,8 +97,17 @@ function onAlarm(message) {
   sound.beep();
   grid.onAlarm(message.camera_id, message.ts);
   gallery.scheduleRefresh();
+  events.heard();
   notifications.soon();
 }
+
+/* "Play" on an alarm's toast or in the alarm list: its event in the Events section. */
+document.addEventListener("click", (event) => {
+  const link = event.target.closest?.(".open-event");
+  if (!link) return;
+  event.preventDefault();
+  events.open(Number(link.dataset.event));
+});
 
 /* Snapshots deleted (by this page, or elsewhere as /ws tells): the alarms that showed them
    say so, and the toasts that show them lose the picture (their words say enough). */
@@ -133,6 +150,7 @@ document.addEventListener("visibilitychange", () => {
 grid.load().then(() => {
   gallery.load("fresh");
   alarms.loadRecent();
+  events.load();
 });
 analyses.load();
 mqttBadge.start();

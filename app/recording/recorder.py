@@ -105,7 +105,9 @@ class Recording:
         """The camera's next frame; False once the clip takes no more (then it finishes)."""
         if self._closing:
             return False
-        if moving:
+        # Once the event is over, motion is the next event's (in its own clip): this one
+        # still ends at its post-roll, or back-to-back events would keep it open for ever.
+        if moving and not self.ended:
             self.last_moving = frame.mono
             for held in self._held:  # The event went on: its quiet frames are in the clip.
                 self._put(held)

@@ -79,6 +79,26 @@ def test_an_event_that_moves_again_in_its_quiet_seconds_keeps_them(tmp_path: Pat
     assert np.allclose(times, [i / FPS for i in range(47)], atol=1e-3), "no gap, 0.5 s after"
 
 
+def test_the_next_event_in_a_clips_post_roll_does_not_keep_it_open(tmp_path: Path) -> None:
+    # Something crosses every 1.2 s (a looped video, a busy lane): each event ends, and the
+    # next starts within the last one's post-roll. Its motion belonged to the new event,
+    # whose clip has it: the ended one still ends at its post-roll (it took the new
+    # event's motion as its own, and was never written).
+    recorder, db = _parts(tmp_path, pre_roll_s=0.0)
+    first, second = db.add_event(1, 0.0, [], 1.0), db.add_event(1, 1.0, [], 1.0)
+    recorder.start(first, 1000.0, 0.0, FPS)
+    _feed(recorder, range(0, 10), range(0, 10))
+    _feed(recorder, range(10, 14), range(0))
+    recorder.end(first, 1000.0 + 14 / FPS)  # Quiet for a few frames: over.
+    _feed(recorder, range(14, 18), range(0))
+    recorder.start(second, 1000.0 + 18 / FPS, 18 / FPS, FPS)  # Within the post-roll.
+    _feed(recorder, range(18, 40), range(18, 40))
+    row = _finished(db, first)
+    times = _times(tmp_path / "data" / "clips" / row["clip_path"])
+    last = 9 + int(0.5 * FPS)  # The post-roll: 0.5 s after the last moving frame, 9.
+    assert np.allclose(times, [i / FPS for i in range(last + 1)], atol=1e-3)
+
+
 def test_stop_ends_the_clip_with_what_it_has(tmp_path: Path) -> None:
     recorder, db = _parts(tmp_path)
     event = db.add_event(1, 0.0, [], 1.0)

@@ -67,6 +67,8 @@ def test_metrics_report_a_camera_that_detects_and_raises_an_alarm(
     frames_read = camera_sample(during, "vigil_camera_frames_total", cam)
     assert frames_read > camera_sample(before, "vigil_camera_frames_total", cam)
     after = poll(server, lambda s: s[("vigil_events_open", ())] == 0, "the event ended")
+    # Its clip is written within 2 s of the event's end.
+    poll(server, lambda s: s[("vigil_clips_bytes", ())] > 0, "the clip counted")
     detected = camera_sample(after, "vigil_camera_detect_seconds_count", cam)
     assert detected > camera_sample(during, "vigil_camera_detect_seconds_count", cam) > 0
     # Cumulative buckets end at every frame detected: a 320-wide frame takes under 1 s.

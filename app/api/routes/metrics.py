@@ -35,6 +35,9 @@ class VigilCollector:
         snapshots = GaugeMetricFamily("vigil_snapshots_bytes", "Disk space the snapshots use.")
         snapshots.add_metric([], svc.database.snapshot_bytes())
         yield snapshots
+        clips = GaugeMetricFamily("vigil_clips_bytes", "Disk space the event clips use.")
+        clips.add_metric([], svc.database.clip_bytes())
+        yield clips
         yield from self._notifications()
         mqtt = GaugeMetricFamily(
             "vigil_mqtt_connected", "1 while connected to the MQTT broker (none without one)."

@@ -11,6 +11,8 @@ import numpy as np
 import pytest
 
 from app.sources.synthetic import Scene
+from tests.postgres import Cluster
+from tests.postgres import missing as postgres_missing
 
 ROOT = Path(__file__).resolve().parents[1]
 
@@ -70,3 +72,25 @@ def lit(frame: np.ndarray, light: np.ndarray) -> np.ndarray:
     """``frame`` (BGR or grey, 8-bit) with ``light`` added to each channel."""
     added = light[..., None] if frame.ndim == 3 else light
     return np.clip(frame.astype(np.float64) + added, 0, 255).astype(np.uint8)
+
+
+@pytest.fixture(scope="session")
+def postgres() -> Iterator[Cluster]:
+    """A real PostgreSQL server for the session (tests/postgres.py); skipped with the reason
+    where one cannot be made."""
+    reason = postgres_missing()
+    if reason:
+        pytest.skip(reason)
+    cluster = Cluster().start()
+    try:
+        yield cluster
+    finally:
+        cluster.stop()
+
+
+@pytest.fixture
+def postgres_url(postgres: Cluster) -> Iterator[str]:
+    """A fresh database of its own for the test, dropped after it: its URL."""
+    url = postgres.database()
+    yield url
+    postgres.drop(url)

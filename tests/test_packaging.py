@@ -61,7 +61,8 @@ def test_every_package_of_app_is_listed_for_the_wheel():
 
 def test_the_wheel_carries_the_page(tmp_path):
     """Built from the checkout, the wheel holds the page's files inside the package, where
-    an installed Vigil serves them from. (Built from a copy: a build leaves build/ behind.)"""
+    an installed Vigil serves them from, and the database's migrations. (Built from a copy:
+    a build leaves build/ behind.)"""
     source = tmp_path / "source"
     for name in ("app", "static", "templates"):
         shutil.copytree(ROOT / name, source / name, ignore=shutil.ignore_patterns("__pycache__"))
@@ -82,3 +83,10 @@ def test_the_wheel_carries_the_page(tmp_path):
         if path.is_file()
     }
     assert page and page <= names, sorted(page - names)
+    migrations = {
+        f"{path.relative_to(ROOT)}"
+        for path in (ROOT / "app" / "storage" / "migrations").rglob("*")
+        if path.is_file() and "__pycache__" not in path.parts
+    }
+    assert "app/storage/migrations/versions/0001_schema.py" in migrations
+    assert migrations <= names, sorted(migrations - names)  # Run from the wheel, at start.

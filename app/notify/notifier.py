@@ -21,7 +21,6 @@ import contextlib
 import logging
 import queue
 import re
-import sqlite3
 import threading
 import time
 from collections.abc import Callable, Sequence
@@ -34,6 +33,7 @@ from app.events.messages import Wire
 from app.notify.message import alarm_body, alarm_title, sample_body
 from app.notify.targets import Destination, Message, Outcome, TargetError, quiet_apprise
 from app.sources.live import MASK
+from app.storage.db import IntegrityError
 
 if TYPE_CHECKING:
     from app.storage.db import Database
@@ -385,7 +385,7 @@ class Notifier:
         Destination(url)
         try:
             target_id = self.db.add_target(url, cameras)
-        except sqlite3.IntegrityError:
+        except IntegrityError:
             same = next((w for w in self._listed() if w.url == url), None)
             which = f" (target {same.id})" if same else ""
             raise DuplicateTargetError(f"this URL is a target already{which}") from None

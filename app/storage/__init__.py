@@ -1,4 +1,5 @@
-"""Persistence: the SQLite database, the snapshot files and the event clips."""
+"""Persistence: the database (SQLite, or PostgreSQL with VIGIL_DATABASE_URL), the snapshot
+files and the event clips."""
 
 from app.storage.clips import ClipStore
 from app.storage.db import Database

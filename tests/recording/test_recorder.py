@@ -9,10 +9,12 @@ import av
 import cv2
 import numpy as np
 import pytest
+from sqlalchemy import delete
 
 from app.recording.recorder import Recorder
 from app.sources.frames import DecodedFrame, JpegFrame
 from app.storage import Database
+from app.storage.schema import events
 from tests.api.vigil_livekit import FPS, frame_at, live_settings, wait_for
 
 JPEGS = [cv2.imencode(".jpg", frame_at(i))[1].tobytes() for i in range(45)]
@@ -172,8 +174,8 @@ def test_a_clip_of_an_event_deleted_meanwhile_goes_too(tmp_path: Path) -> None:
     _feed(recorder, range(10), range(10))
     relative = db.event(event)["clip_path"]  # type: ignore[index]
     db.end_event(event, 1.0, 1.0)
-    with db._tx() as conn:  # As a DELETE would, had it not waited for the clip.
-        conn.execute("DELETE FROM events WHERE id = ?", (event,))
+    with db.transaction() as conn:  # As a DELETE would, had it not waited for the clip.
+        conn.execute(delete(events).where(events.c.id == event))
     recorder.stop()
     assert recorder.wait(10)
     assert not (recorder.store.root / relative).exists()

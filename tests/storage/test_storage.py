@@ -7,16 +7,21 @@ import sqlite3
 import zipfile
 from pathlib import Path
 
+import pytest
+
 from app.storage import Database, SnapshotStore, stream_zip, write_atomic
+from app.storage.db import DatabaseClosedError
+from app.storage.engine import Target
+from tests.storage.conftest import raw_rows
 
 
-def test_database_is_wal_and_cameras_round_trip(tmp_path: Path) -> None:
-    db = Database(tmp_path / "v.db")
-    assert db.journal_mode == "wal"
+def test_database_is_wal_and_cameras_round_trip(tmp_path: Path, db_target: Target) -> None:
+    db = Database(db_target)
+    assert db.journal_mode == ("wal" if isinstance(db_target, Path) else "")
     cam = db.add_camera("door", "file:///x.avi", "adaptive", 100.0)
     db.update_camera(cam, sensitivity=40.0, active=1, show_mask=1)
     db.close()
-    again = Database(tmp_path / "v.db")
+    again = Database(db_target)
     (row,) = again.cameras()
     assert row["name"] == "door" and row["sensitivity"] == 40.0
     assert row["active"] is True and row["show_mask"] is True
@@ -24,17 +29,25 @@ def test_database_is_wal_and_cameras_round_trip(tmp_path: Path) -> None:
     again.close()
 
 
-def test_other_connections_read_while_open(tmp_path: Path) -> None:
-    db = Database(tmp_path / "v.db")
+def test_a_closed_database_refuses_to_be_used(db_target: Target) -> None:
+    db = Database(db_target)
+    camera = db.add_camera("a", "demo", "adaptive", 100.0)
+    db.close()
+    with pytest.raises(DatabaseClosedError):
+        db.camera(camera)
+    with pytest.raises(DatabaseClosedError):
+        db.add_event(camera, 1.0, [], 1.0)
+
+
+def test_other_connections_read_while_open(tmp_path: Path, db_target: Target) -> None:
+    db = Database(db_target)
     db.add_camera("a", "demo", "adaptive", 100.0)
-    other = sqlite3.connect(tmp_path / "v.db")
-    assert other.execute("SELECT name FROM cameras").fetchall() == [("a",)]
-    other.close()
+    assert raw_rows(db_target, "SELECT name FROM cameras") == [("a",)]
     db.close()
 
 
-def test_events_and_snapshot_filters(tmp_path: Path) -> None:
-    db = Database(tmp_path / "v.db")
+def test_events_and_snapshot_filters(tmp_path: Path, db_target: Target) -> None:
+    db = Database(db_target)
     e1 = db.add_event(1, 100.0, [[1, 2, 3, 4]], 12.0, [1])
     db.add_event(2, 200.0, [], 5.0)
     db.end_event(e1, 101.5, 30.0, [1, 2])
@@ -53,10 +66,12 @@ def test_events_and_snapshot_filters(tmp_path: Path) -> None:
     db.close()
 
 
-def test_event_filters_select_events_that_overlap_the_window(tmp_path: Path) -> None:
+def test_event_filters_select_events_that_overlap_the_window(
+    tmp_path: Path, db_target: Target
+) -> None:
     """``since``/``until`` select the events going on at some time in the window: one that
     began before ``since`` and ended (or is still running) after it is in."""
-    db = Database(tmp_path / "v.db")
+    db = Database(db_target)
     early = db.add_event(1, 50.0, [], 1.0)
     db.end_event(early, 60.0, 1.0)
     across = db.add_event(1, 100.0, [], 1.0)
@@ -77,8 +92,8 @@ def test_event_filters_select_events_that_overlap_the_window(tmp_path: Path) -> 
     db.close()
 
 
-def test_unfinished_analyses_fail_on_restart(tmp_path: Path) -> None:
-    db = Database(tmp_path / "v.db")
+def test_unfinished_analyses_fail_on_restart(tmp_path: Path, db_target: Target) -> None:
+    db = Database(db_target)
     db.add_analysis("abc", "x.avi", {"method": None})
     db.add_analysis("def", "y.avi", {})
     db.update_analysis("def", status="done", progress=1.0)
@@ -125,10 +140,10 @@ def test_stream_zip_is_streamed_and_valid(tmp_path: Path) -> None:
     assert archive.read("cam/3.jpg") == bytes([3]) * 100_003
 
 
-def test_prune_removes_old_snapshots_and_events(tmp_path: Path) -> None:
+def test_prune_removes_old_snapshots_and_events(tmp_path: Path, db_target: Target) -> None:
     from app.storage import prune
 
-    db = Database(tmp_path / "v.db")
+    db = Database(db_target)
     store = SnapshotStore(tmp_path / "snaps")
     old_event = db.add_event(1, 100.0, [], 1.0)
     db.end_event(old_event, 101.0, 1.0)

@@ -9,11 +9,14 @@ from pathlib import Path
 import cv2
 import numpy as np
 import pytest
+from sqlalchemy import update
 
 from app.recording.mp4 import ClipFrame, H264Writer
 from app.storage import ClipStore, Database, SnapshotStore, prune, prune_to_size
 from app.storage.clips import KILLED, clip_length_s, finish_unfinished
+from app.storage.engine import Target
 from app.storage.files import RETENTION
+from app.storage.schema import events
 from tests.api.vigil_livekit import FPS, frame_at
 
 
@@ -39,8 +42,10 @@ def _ended(db: Database, camera_id: int, started_at: float) -> int:
     return event
 
 
-def test_the_clips_total_follows_their_rows_and_survives_reopen(tmp_path: Path) -> None:
-    db = Database(tmp_path / "v.db")
+def test_the_clips_total_follows_their_rows_and_survives_reopen(
+    tmp_path: Path, db_target: Target
+) -> None:
+    db = Database(db_target)
     first, second = _ended(db, 1, 100.0), _ended(db, 1, 200.0)
     db.start_clip(first, "1/a.mp4", 99.0)
     db.finish_clip(first, 5000, 3.0)
@@ -51,7 +56,7 @@ def test_the_clips_total_follows_their_rows_and_survives_reopen(tmp_path: Path) 
     assert db.clip_bytes() == 7000
     db.delete_events([second])
     db.close()
-    again = Database(tmp_path / "v.db")
+    again = Database(db_target)
     assert again.clip_bytes() == 0
     again.close()
 
@@ -76,8 +81,10 @@ def test_a_database_from_before_clips_gains_them(tmp_path: Path) -> None:
     assert Database(path).clip_bytes() == 300, "reopening must not count twice"
 
 
-def test_the_size_cap_takes_the_oldest_snapshots_and_clips_alike(tmp_path: Path) -> None:
-    db = Database(tmp_path / "v.db")
+def test_the_size_cap_takes_the_oldest_snapshots_and_clips_alike(
+    tmp_path: Path, db_target: Target
+) -> None:
+    db = Database(db_target)
     snapshots = SnapshotStore(tmp_path / "snaps")
     clips = ClipStore(tmp_path / "clips")
     oldest = _ended(db, 1, 100.0)  # A clip and a snapshot: both go, and so does it.
@@ -109,8 +116,10 @@ def test_the_size_cap_takes_the_oldest_snapshots_and_clips_alike(tmp_path: Path)
     assert prune_to_size(db, snapshots, cap, clips=clips) == 0
 
 
-def test_age_takes_old_events_with_their_clips_and_activity(tmp_path: Path) -> None:
-    db = Database(tmp_path / "v.db")
+def test_age_takes_old_events_with_their_clips_and_activity(
+    tmp_path: Path, db_target: Target
+) -> None:
+    db = Database(db_target)
     snapshots = SnapshotStore(tmp_path / "snaps")
     clips = ClipStore(tmp_path / "clips")
     old, new = _ended(db, 1, 100.0), _ended(db, 2, 2000.0)
@@ -124,8 +133,10 @@ def test_age_takes_old_events_with_their_clips_and_activity(tmp_path: Path) -> N
     assert db.activity(2, 0, 3000, 3000) == {0: (0.3, 1)}
 
 
-def test_clips_a_kill_left_unfinished_are_cut_to_what_plays(tmp_path: Path) -> None:
-    db = Database(tmp_path / "v.db")
+def test_clips_a_kill_left_unfinished_are_cut_to_what_plays(
+    tmp_path: Path, db_target: Target
+) -> None:
+    db = Database(db_target)
     clips = ClipStore(tmp_path / "clips")
     cut, empty, gone = (_ended(db, 1, t) for t in (100.0, 200.0, 300.0))
     relative = _clip(clips, db, cut, seconds=4.0)
@@ -135,11 +146,13 @@ def test_clips_a_kill_left_unfinished_are_cut_to_what_plays(tmp_path: Path) -> N
     clips.path(db.event(empty)["clip_path"]).write_bytes(data[:100])  # type: ignore[index]
     db.start_clip(gone, "1/never-written.mp4", 299.0)
     for event in (cut, empty):  # As a killed recorder leaves them: no length yet.
-        with db._tx() as conn:
-            conn.execute("UPDATE events SET clip_s = NULL, clip_bytes = 0 WHERE id = ?", (event,))
+        with db.transaction() as conn:
+            conn.execute(
+                update(events).where(events.c.id == event).values(clip_s=None, clip_bytes=0)
+            )
     db.close()
 
-    again = Database(tmp_path / "v.db")
+    again = Database(db_target)
     assert finish_unfinished(again, clips) == 3
     row = again.event(cut)
     assert row is not None and row["clip_error"] == KILLED

@@ -11,7 +11,9 @@ import numpy as np
 import pytest
 
 from app.storage import Database, SnapshotStore, prune_to_size, write_atomic
+from app.storage.engine import Target
 from app.storage.files import describe_write_error
+from tests.storage.conftest import raw_rows
 
 
 def _jpeg(seed: int, side: int) -> bytes:
@@ -26,17 +28,17 @@ def _bytes_on_disk(db: Database, store: SnapshotStore) -> int:
     return sum(store.path(s["path"]).stat().st_size for s in db.snapshots(limit=10_000))
 
 
-def test_running_total_follows_inserts_and_deletes_and_survives_reopen(tmp_path: Path) -> None:
-    db = Database(tmp_path / "v.db")
+def test_running_total_follows_inserts_and_deletes_and_survives_reopen(
+    tmp_path: Path, db_target: Target
+) -> None:
+    db = Database(db_target)
     ids = [db.add_snapshot(1, None, float(i), "frame", f"1/{i}.jpg", 1000 + i) for i in range(5)]
     assert db.snapshot_bytes() == sum(1000 + i for i in range(5))
     db.delete_snapshots(ids[:2])
     db.close()
-    again = Database(tmp_path / "v.db")
+    again = Database(db_target)
     assert again.snapshot_bytes() == 1002 + 1003 + 1004
-    raw = sqlite3.connect(tmp_path / "v.db")
-    assert raw.execute("SELECT SUM(size) FROM snapshots").fetchone() == (1002 + 1003 + 1004,)
-    raw.close()
+    assert raw_rows(db_target, "SELECT SUM(size) FROM snapshots") == [(1002 + 1003 + 1004,)]
     again.close()
 
 
@@ -62,8 +64,10 @@ def test_running_total_is_counted_for_a_database_from_before_it(tmp_path: Path) 
     assert Database(path).snapshot_bytes() == 2250, "reopening must not count twice"
 
 
-def test_size_cap_removes_the_oldest_snapshots_then_their_ended_events(tmp_path: Path) -> None:
-    db = Database(tmp_path / "v.db")
+def test_size_cap_removes_the_oldest_snapshots_then_their_ended_events(
+    tmp_path: Path, db_target: Target
+) -> None:
+    db = Database(db_target)
     store = SnapshotStore(tmp_path / "snaps")
     gone_event = db.add_event(1, 100.0, [], 1.0)  # Both its snapshots are the oldest.
     db.end_event(gone_event, 102.0, 1.0)
@@ -105,8 +109,10 @@ def test_size_cap_removes_the_oldest_snapshots_then_their_ended_events(tmp_path:
     db.close()
 
 
-def test_events_left_open_by_a_crash_end_at_their_last_snapshot(tmp_path: Path) -> None:
-    db = Database(tmp_path / "v.db")
+def test_events_left_open_by_a_crash_end_at_their_last_snapshot(
+    tmp_path: Path, db_target: Target
+) -> None:
+    db = Database(db_target)
     with_pictures = db.add_event(1, 100.0, [], 1.0)
     db.add_snapshot(1, with_pictures, 100.0, "frame", "a.jpg", 1)
     db.add_snapshot(1, with_pictures, 103.5, "frame", "b.jpg", 1)
@@ -115,7 +121,7 @@ def test_events_left_open_by_a_crash_end_at_their_last_snapshot(tmp_path: Path) 
     db.end_event(finished, 310.0, 1.0)
     db.close()  # As a killed server leaves it.
 
-    again = Database(tmp_path / "v.db")
+    again = Database(db_target)
     assert len(again.close_open_events()) == 2
     ended = {e["id"]: e["ended_at"] for e in again.events()}
     assert ended == {with_pictures: 103.5, without: 200.0, finished: 310.0}

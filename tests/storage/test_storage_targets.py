@@ -9,6 +9,8 @@ from pathlib import Path
 import pytest
 
 from app.storage import Database
+from app.storage.db import IntegrityError
+from app.storage.engine import Target
 
 
 def test_a_database_from_before_notifications_gains_the_targets_table(tmp_path: Path) -> None:
@@ -19,6 +21,7 @@ def test_a_database_from_before_notifications_gains_the_targets_table(tmp_path: 
     old = sqlite3.connect(path)  # As a release before notifications left it.
     old.execute("DROP INDEX notification_targets_url")
     old.execute("DROP TABLE notification_targets")
+    old.execute("DROP TABLE alembic_version")  # Nor had it migrations.
     old.commit()
     old.close()
 
@@ -35,7 +38,7 @@ def test_a_database_from_before_notifications_gains_the_targets_table(tmp_path: 
         (second, "json://host/hook", [cam, 9], "api"),
     ]
     assert again.target(second) == listed[1] and again.target(2**70) is None
-    with pytest.raises(sqlite3.IntegrityError):
+    with pytest.raises(IntegrityError):
         again.add_target("ntfys://door", [cam])
     assert again.delete_target(first) and not again.delete_target(first)
     assert not again.delete_target(2**70)
@@ -43,8 +46,8 @@ def test_a_database_from_before_notifications_gains_the_targets_table(tmp_path: 
     again.close()
 
 
-def test_targets_of_notify_urls_follow_the_variable(tmp_path: Path) -> None:
-    db = Database(tmp_path / "v.db")
+def test_targets_of_notify_urls_follow_the_variable(tmp_path: Path, db_target: Target) -> None:
+    db = Database(db_target)
     mine = db.add_target("json://host/mine", None)
     assert db.sync_env_targets(["ntfys://a", "json://host/mine", "ntfys://b", "ntfys://a"]) == (
         2,

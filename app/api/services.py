@@ -88,7 +88,8 @@ class Services:
     def start(self) -> None:
         settings = self.settings
         settings.data_dir.mkdir(parents=True, exist_ok=True)
-        self.db = Database(settings.db_path)
+        self.db = Database(settings.database)  # Migrated first, before any camera process.
+        log.info("database: %s, %s", self.db.dialect, self.db.shown)
         closed = len(self.db.close_open_events())  # No worker runs yet: the last run's.
         if closed:
             log.info("closed %d event(s) left open when the server last stopped", closed)
@@ -156,6 +157,11 @@ class Services:
         """``disabled`` without ``VIGIL_MQTT_URL``; else ``connected`` or ``disconnected``
         (with the reason), the broker and since when."""
         return {"state": "disabled"} if self.mqtt is None else self.mqtt.health()
+
+    def database_health(self) -> dict[str, Any]:
+        """Which database: ``{"engine": "sqlite"}`` or ``{"engine": "postgresql"}`` (no
+        address: /api/health answers without a password)."""
+        return {"engine": self.database.dialect}
 
     def storage(self) -> dict[str, Any]:
         """Free space, the snapshots' and clips' totals and cap, and why snapshots or clips

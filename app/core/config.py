@@ -20,6 +20,11 @@ class Settings(BaseSettings):
     port: int = Field(default=8000, ge=1, le=MAX_PORT)
     data_dir: Path = Path("data")
     """Holds vigil.db (SQLite), snapshots/, clips/ and analyses/."""
+    database_url: str | None = Field(default=None, repr=False)
+    """PostgreSQL instead of SQLite for every table: ``postgresql://user:password@host:5432/
+    database`` (special characters of the password %-encoded; libpq's parameters such as
+    ``?sslmode=require`` may follow). Unset or empty: SQLite, ``vigil.db`` in the data
+    folder. Its password is never shown."""
     password: str | None = Field(default=None, repr=False)
     """When set, every page and API call needs a login (``/login``) or HTTP basic auth with
     this password. The app keeps only its scrypt hash."""
@@ -127,6 +132,16 @@ class Settings(BaseSettings):
         Broker.parse(value.strip())  # ValueError: the reason, never the password.
         return value.strip()
 
+    @field_validator("database_url")
+    @classmethod
+    def _check_database_url(cls, value: str | None) -> str | None:
+        if value is None or not value.strip():
+            return None
+        from app.storage.engine import postgres_url  # Here: app.core imports no more of Vigil.
+
+        postgres_url(value)  # ValueError: the reason, never the password.
+        return value.strip()
+
     @field_validator("mqtt_prefix")
     @classmethod
     def _check_mqtt_prefix(cls, value: str) -> str:
@@ -172,6 +187,11 @@ class Settings(BaseSettings):
     @property
     def db_path(self) -> Path:
         return self.data_dir / "vigil.db"
+
+    @property
+    def database(self) -> Path | str:
+        """Where the database is: ``database_url``, or else SQLite's file, ``db_path``."""
+        return self.database_url or self.db_path
 
     @property
     def snapshots_dir(self) -> Path:

@@ -190,7 +190,7 @@ def run_cameras(conn: Connection, settings: Settings) -> None:
 
     threading.Thread(target=warm, name="warm-up", daemon=True).start()
     link = _Link(conn)
-    db = Database(settings.db_path)
+    db = Database(settings.database, migrate=False)  # The server has migrated it.
     snapshots = SnapshotStore(settings.snapshots_dir)
     clips = ClipStore(settings.clips_dir)
     sender = _FrameSender(link)

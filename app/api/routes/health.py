@@ -13,6 +13,12 @@ router = APIRouter()
 def health(request: Request) -> dict[str, Any]:
     """``status`` is ``ok`` while the server answers; ``storage``: are snapshots being saved;
     ``mqtt``: ``disabled``, or ``connected`` / ``disconnected`` (with the reason) to the
-    broker. MQTT down is not the server down: ``status`` stays ``ok``."""
+    broker. MQTT down is not the server down: ``status`` stays ``ok``. ``database``: its
+    ``engine``, ``sqlite`` or ``postgresql``."""
     svc = services(request)
-    return {"status": "ok", "storage": svc.storage(), "mqtt": svc.mqtt_health()}
+    return {
+        "status": "ok",
+        "storage": svc.storage(),
+        "mqtt": svc.mqtt_health(),
+        "database": svc.database_health(),
+    }

@@ -380,6 +380,9 @@ def _serve(args: argparse.Namespace) -> int:
             raise PermissionError(errno.EACCES, "not writable", str(settings.data_dir))
     except OSError as exc:
         return _fail("serve", f"cannot use data folder {settings.data_dir}: {exc.strerror}")
+    failed = _migrate(settings.database)
+    if failed:
+        return _fail("serve", failed)
     import uvicorn
 
     from app.api.app import create_app
@@ -397,6 +400,24 @@ def _serve(args: argparse.Namespace) -> int:
         log_level="info",
     )
     return 0
+
+
+def _migrate(target: Path | str) -> str | None:
+    """Bring the database's schema up to this release's before the server starts (it finds
+    nothing left to do); why that failed, in one line without a password, or None."""
+    from sqlalchemy.exc import DBAPIError
+
+    from app.storage.engine import shown
+    from app.storage.migrate import SchemaError, upgrade
+
+    try:
+        upgrade(target)
+    except SchemaError as exc:
+        return str(exc)
+    except DBAPIError as exc:  # Unreachable, refused, not a database...
+        reason = str(exc.orig).strip().splitlines()[0] if exc.orig else type(exc).__name__
+        return f"cannot use the database {shown(target)}: {reason}"
+    return None
 
 
 def _hash_password() -> int:

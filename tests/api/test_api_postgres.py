@@ -5,6 +5,9 @@ PostgreSQL and none in SQLite; restarted on the same database; the password neve
 from __future__ import annotations
 
 import logging
+import os
+import subprocess
+import sys
 from pathlib import Path
 
 import httpx
@@ -12,8 +15,10 @@ import psycopg
 import pytest
 
 from tests.api.vigil_livekit import (
+    ROOT,
     WsClient,
     add_camera,
+    free_port,
     live_settings,
     running_server,
     serve_process,
@@ -93,3 +98,32 @@ def test_serve_on_postgresql_keeps_its_cameras_across_restarts_and_hides_the_pas
         process.kill()
         output = process.communicate(timeout=10)[0]
     assert postgres.password not in output
+
+
+def test_serve_refuses_a_database_it_cannot_use_in_one_line_without_its_password(
+    postgres: Cluster, tmp_path: Path
+) -> None:
+    secret = "hunter2-secret"
+    closed = f"postgresql://vigil:{secret}@127.0.0.1:{free_port()}/vigil"
+    wrong = postgres.url("postgres", password=secret)
+    for url, reason in (
+        ("mysql://vigil:hunter2-secret@host/vigil", "VIGIL_DATABASE_URL"),
+        (closed, "Connection refused"),
+        (wrong, "password authentication failed"),
+    ):
+        done = subprocess.run(
+            [sys.executable, "-m", "app", "serve", "--port", str(free_port())],
+            cwd=ROOT,
+            env={
+                **os.environ,
+                "PYTHONPATH": str(ROOT),
+                "VIGIL_DATA_DIR": str(tmp_path),
+                "VIGIL_DATABASE_URL": url,
+            },
+            capture_output=True,
+            text=True,
+            timeout=60,
+        )
+        output = done.stdout + done.stderr
+        assert done.returncode == 2 and reason in output, output
+        assert len(output.strip().splitlines()) == 1 and secret not in output, output

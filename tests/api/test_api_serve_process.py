@@ -75,15 +75,19 @@ def test_serve_off_loopback_refuses_to_start_without_a_password(tmp_path: Path) 
     assert "VIGIL_PASSWORD" in result.stderr and len(result.stderr.strip().splitlines()) == 1
 
 
-def test_serve_refuses_a_bad_port_or_data_folder_in_one_line(tmp_path: Path) -> None:
+def test_serve_refuses_a_bad_port_data_folder_or_database_in_one_line(tmp_path: Path) -> None:
     blocker = tmp_path / "a-file"
     blocker.write_text("not a folder")
+    garbled = tmp_path / "garbled"
+    garbled.mkdir()
+    (garbled / "vigil.db").write_text("not a database")
     env = {k: v for k, v in os.environ.items() if not k.startswith("VIGIL_")}
     cases = [
         (["--port", "99999"], {}, "port must be 1..65535, not 99999"),
         (["--port", "http"], {}, "not a port number"),
         (["--data", str(blocker / "data")], {}, f"cannot use data folder {blocker / 'data'}"),
         (["--data", str(tmp_path / "d")], {"VIGIL_PORT": "0"}, "VIGIL_PORT: Input should be"),
+        (["--data", str(garbled)], {}, "cannot use the database"),
     ]
     for args, extra, reason in cases:
         result = subprocess.run(

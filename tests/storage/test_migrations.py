@@ -296,7 +296,8 @@ def test_rows_one_transaction_locks_another_skips(postgres_url: str) -> None:
 
 def test_totals_stay_exact_with_writers_at_once(db_target: Target) -> None:
     """Threads of several processes (here: of two Database objects) adding and deleting
-    snapshots and clips at once: the running totals are the sums of the rows."""
+    snapshots and clips at once, one by one and in bulk as retention does: the running
+    totals are the sums of the rows, and no writer fails."""
     dbs = [Database(db_target), Database(db_target)]
 
     def write(index: int) -> None:
@@ -311,11 +312,26 @@ def test_totals_stay_exact_with_writers_at_once(db_target: Target) -> None:
                 db.delete_snapshots([snapshot])
                 db.delete_events([event])
 
+    def prune(index: int) -> None:  # Two prune the same rows at once, in bulk.
+        db = dbs[index % 2]
+        snapshots = [s["id"] for s in db.snapshots(limit=10_000)]
+        events = [e["id"] for e in db.events(limit=10_000)]
+        for start in range(0, len(snapshots), 40):
+            db.delete_snapshots(snapshots[start : start + 40][:: 1 if index % 2 else -1])
+            db.delete_events(events[start : start + 40])
+
     with ThreadPoolExecutor(6) as pool:
         list(pool.map(write, range(6)))
+    with ThreadPoolExecutor(6) as pool:
+        done = [pool.submit(write, 10 + i) for i in range(2)]
+        done += [pool.submit(prune, i) for i in range(4)]
+        for future in done:
+            future.result()
     ((snapshots,),) = raw_rows(db_target, "SELECT COALESCE(SUM(size), 0) FROM snapshots")
     ((clips,),) = raw_rows(db_target, "SELECT COALESCE(SUM(clip_bytes), 0) FROM events")
-    assert dbs[0].snapshot_bytes() == dbs[1].snapshot_bytes() == snapshots > 0
-    assert dbs[0].clip_bytes() == clips == 6 * 20 * 1000 + 20 * sum(range(6))
+    assert dbs[0].snapshot_bytes() == dbs[1].snapshot_bytes() == snapshots
+    assert dbs[0].clip_bytes() == clips
+    dbs[0].add_snapshot(1, None, 1.0, "frame", "last.jpg", 7)
+    assert dbs[1].snapshot_bytes() == snapshots + 7
     for db in dbs:
         db.close()

@@ -5,7 +5,8 @@ SQLite: the statements Vigil ran at every start until then, all of them idempote
 database of any earlier release (without the clips' columns, the notification targets, the
 totals...) is brought up to this schema with its rows, one already there is left as it is,
 and a new one is made. PostgreSQL: the same tables, made anew, with the totals kept by
-triggers too (in ``USAGE_SLOTS`` rows each; see app/storage/schema.py).
+triggers too (in ``USAGE_SLOTS`` rows each; see app/storage/schema.py); they need
+PostgreSQL 11 or later.
 
 Revision ID: 0001
 Revises:
@@ -134,47 +135,72 @@ CREATE TABLE IF NOT EXISTS activity (
 USAGE_SLOTS = 16
 """Rows per running total in PostgreSQL: a row's size counts in row ``id % 16``."""
 
-# Each total follows its rows' inserts, deletes and (clips) updates. A row of size 0 changes
-# no total, and its insert takes no lock on one (every event starts without a clip).
+# Each total follows its rows' inserts and (clips) updates row by row: one row at a time, and
+# one of size 0 changes no total and takes no lock on one (every event starts without a
+# clip). Deletes come in bulk (retention): once per statement, slot by slot in order, so that
+# two deleting at once take the slots' locks in the same order and never wait on each other
+# in a circle.
 POSTGRES_USAGE = (
     """
-CREATE FUNCTION snapshot_usage_follow() RETURNS trigger LANGUAGE plpgsql AS $$
+CREATE FUNCTION snapshot_usage_add() RETURNS trigger LANGUAGE plpgsql AS $$
 BEGIN
-    IF TG_OP = 'INSERT' THEN
-        UPDATE snapshot_usage SET bytes = bytes + NEW.size WHERE id = mod(NEW.id, 16);
-    ELSE
-        UPDATE snapshot_usage SET bytes = bytes - OLD.size WHERE id = mod(OLD.id, 16);
-    END IF;
+    UPDATE snapshot_usage SET bytes = bytes + NEW.size WHERE id = mod(NEW.id, 16);
     RETURN NULL;
 END $$""",
     """
 CREATE TRIGGER snapshot_usage_insert AFTER INSERT ON snapshots
-    FOR EACH ROW WHEN (NEW.size <> 0) EXECUTE FUNCTION snapshot_usage_follow()""",
+    FOR EACH ROW WHEN (NEW.size <> 0) EXECUTE FUNCTION snapshot_usage_add()""",
+    """
+CREATE FUNCTION snapshot_usage_remove() RETURNS trigger LANGUAGE plpgsql AS $$
+DECLARE
+    slot record;
+BEGIN
+    FOR slot IN
+        SELECT mod(id, 16) AS id, SUM(size) AS bytes FROM gone
+        GROUP BY 1 HAVING SUM(size) <> 0 ORDER BY 1
+    LOOP
+        UPDATE snapshot_usage SET bytes = bytes - slot.bytes WHERE id = slot.id;
+    END LOOP;
+    RETURN NULL;
+END $$""",
     """
 CREATE TRIGGER snapshot_usage_delete AFTER DELETE ON snapshots
-    FOR EACH ROW WHEN (OLD.size <> 0) EXECUTE FUNCTION snapshot_usage_follow()""",
+    REFERENCING OLD TABLE AS gone
+    FOR EACH STATEMENT EXECUTE FUNCTION snapshot_usage_remove()""",
     """
-CREATE FUNCTION clip_usage_follow() RETURNS trigger LANGUAGE plpgsql AS $$
+CREATE FUNCTION clip_usage_add() RETURNS trigger LANGUAGE plpgsql AS $$
 BEGIN
     IF TG_OP = 'INSERT' THEN
         UPDATE clip_usage SET bytes = bytes + NEW.clip_bytes WHERE id = mod(NEW.id, 16);
-    ELSIF TG_OP = 'UPDATE' THEN
+    ELSE
         UPDATE clip_usage SET bytes = bytes + NEW.clip_bytes - OLD.clip_bytes
             WHERE id = mod(NEW.id, 16);
-    ELSE
-        UPDATE clip_usage SET bytes = bytes - OLD.clip_bytes WHERE id = mod(OLD.id, 16);
     END IF;
     RETURN NULL;
 END $$""",
     """
 CREATE TRIGGER clip_usage_insert AFTER INSERT ON events
-    FOR EACH ROW WHEN (NEW.clip_bytes <> 0) EXECUTE FUNCTION clip_usage_follow()""",
+    FOR EACH ROW WHEN (NEW.clip_bytes <> 0) EXECUTE FUNCTION clip_usage_add()""",
     """
 CREATE TRIGGER clip_usage_update AFTER UPDATE OF clip_bytes ON events
-    FOR EACH ROW WHEN (NEW.clip_bytes <> OLD.clip_bytes) EXECUTE FUNCTION clip_usage_follow()""",
+    FOR EACH ROW WHEN (NEW.clip_bytes <> OLD.clip_bytes) EXECUTE FUNCTION clip_usage_add()""",
+    """
+CREATE FUNCTION clip_usage_remove() RETURNS trigger LANGUAGE plpgsql AS $$
+DECLARE
+    slot record;
+BEGIN
+    FOR slot IN
+        SELECT mod(id, 16) AS id, SUM(clip_bytes) AS bytes FROM gone
+        GROUP BY 1 HAVING SUM(clip_bytes) <> 0 ORDER BY 1
+    LOOP
+        UPDATE clip_usage SET bytes = bytes - slot.bytes WHERE id = slot.id;
+    END LOOP;
+    RETURN NULL;
+END $$""",
     """
 CREATE TRIGGER clip_usage_delete AFTER DELETE ON events
-    FOR EACH ROW WHEN (OLD.clip_bytes <> 0) EXECUTE FUNCTION clip_usage_follow()""",
+    REFERENCING OLD TABLE AS gone
+    FOR EACH STATEMENT EXECUTE FUNCTION clip_usage_remove()""",
 )
 
 

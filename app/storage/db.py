@@ -277,7 +277,7 @@ class Database:
             query = query.where(events.c.ended_at.is_(None) | (events.c.ended_at >= since))
         if until is not None:
             query = query.where(events.c.started_at <= until)
-        query = query.order_by(events.c.started_at.desc(), events.c.id.desc()).limit(limit)
+        query = query.order_by(events.c.started_at.desc(), events.c.id.desc()).limit(_limit(limit))
         return [_event(r) for r in self._rows(query)]
 
     # Snapshots -----------------------------------------------------------------------------
@@ -322,9 +322,12 @@ class Database:
                 query = query.where((s.ts < until) | (s.id <= until_id))
         if kind:
             query = query.where(s.kind == kind)
-        if ids is not None:
-            query = query.where(s.id.in_([i for i in ids if _is_row_id(i)]))
-        return self._rows(query.order_by(s.ts.desc(), s.id.desc()).limit(limit))
+        query = query.order_by(s.ts.desc(), s.id.desc()).limit(_limit(limit))
+        if ids is None:
+            return self._rows(query)
+        # A long list a piece at a time (a statement takes so many values), then merged.
+        rows = [row for chunk in _chunks(ids) for row in self._rows(query.where(s.id.in_(chunk)))]
+        return sorted(rows, key=lambda r: (r["ts"], r["id"]), reverse=True)[: max(limit, 0)]
 
     def snapshot(self, snapshot_id: int) -> dict[str, Any] | None:
         if not _is_row_id(snapshot_id):
@@ -370,7 +373,7 @@ class Database:
         return int(self._scalar(select(func.sum(snapshot_usage.c.bytes))) or 0)
 
     def oldest_snapshots(self, limit: int) -> list[dict[str, Any]]:
-        query = select(snapshots).order_by(snapshots.c.ts, snapshots.c.id).limit(limit)
+        query = select(snapshots).order_by(snapshots.c.ts, snapshots.c.id).limit(_limit(limit))
         return self._rows(query)
 
     def delete_events_without_snapshots(self, event_ids: Sequence[int]) -> int:
@@ -483,7 +486,7 @@ class Database:
             select(events)
             .where(events.c.clip_path.is_not(None), events.c.clip_s.is_not(None))
             .order_by(events.c.started_at, events.c.id)
-            .limit(limit)
+            .limit(_limit(limit))
         )
         return [_event(r) for r in self._rows(query)]
 
@@ -563,7 +566,7 @@ class Database:
         return _analysis(row) if row else None
 
     def analyses(self, limit: int = 100) -> list[dict[str, Any]]:
-        query = select(analyses).order_by(analyses.c.created_at.desc()).limit(limit)
+        query = select(analyses).order_by(analyses.c.created_at.desc()).limit(_limit(limit))
         return [_analysis(r) for r in self._rows(query)]
 
     def fail_unfinished_analyses(self, reason: str) -> int:
@@ -665,6 +668,12 @@ def _activity_cameras() -> Select[Any]:
     following = select(func.min(a.camera_id)).where(a.camera_id > first.c.id)
     walk = first.union_all(select(following.scalar_subquery()).where(first.c.id.is_not(None)))
     return select(walk.c.id).where(walk.c.id.is_not(None))
+
+
+def _limit(limit: int) -> int:
+    """A row limit both databases take: PostgreSQL's LIMIT is bound as a 32-bit integer,
+    and neither could return more rows than that anyway; none below 0."""
+    return min(max(limit, 0), 2**31 - 1)
 
 
 def _chunks(ids: Iterable[int]) -> Iterator[list[int]]:

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import io
 import sqlite3
+import sys
 import zipfile
 from pathlib import Path
 
@@ -63,6 +64,21 @@ def test_events_and_snapshot_filters(tmp_path: Path, db_target: Target) -> None:
     assert [s["id"] for s in db.snapshots(until=150, kind="frame")] == [s1]
     assert [r["id"] for r in db.delete_snapshots([s1, 999])] == [s1]
     assert db.snapshot(s1) is None
+    db.close()
+
+
+def test_long_lists_and_limits_fit_what_each_database_takes(db_target: Target) -> None:
+    """More ids than one statement may hold (SQLite: 32766, psycopg: 65535), and a limit
+    beyond PostgreSQL's 32-bit LIMIT, as the API and the benches ask."""
+    db = Database(db_target)
+    ids = [db.add_snapshot(1, None, float(i % 7), "frame", f"{i}.jpg", 1) for i in range(1200)]
+    asked = [*range(-5, 70_000), 2**70]
+    found = db.snapshots(ids=asked, limit=100_000)
+    assert [s["id"] for s in found] == sorted(ids, key=lambda i: ((i - 1) % 7, i), reverse=True)
+    assert [s["id"] for s in db.snapshots(ids=asked, limit=3)] == [s["id"] for s in found[:3]]
+    assert len(db.snapshots(limit=sys.maxsize)) == 1200 == len(db.oldest_snapshots(2**40))
+    assert db.events(limit=sys.maxsize) == [] and db.analyses(limit=sys.maxsize) == []
+    assert len(db.delete_snapshots(asked)) == 1200 and db.snapshot_bytes() == 0
     db.close()
 
 

@@ -23,6 +23,7 @@ from app.api.routes import (
     cameras,
     events,
     health,
+    live,
     metrics,
     pages,
     snapshots,
@@ -59,7 +60,19 @@ def create_app(settings: Settings | None = None) -> FastAPI:
     application.state.services = services
     application.state.settings = settings
     application.state.access = access
-    routers = (health, metrics, auth, cameras, streams, analyses, events, snapshots, ws, pages)
+    routers = (
+        health,
+        metrics,
+        auth,
+        cameras,
+        streams,
+        analyses,
+        events,
+        snapshots,
+        ws,
+        live,
+        pages,
+    )
     for module in routers:
         application.include_router(module.router)
     application.add_exception_handler(RequestValidationError, validation_error)

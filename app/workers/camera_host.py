@@ -26,7 +26,7 @@ import signal
 import threading
 import time
 from multiprocessing.connection import Connection
-from typing import Any, Protocol
+from typing import Any, Protocol, cast
 
 import cv2
 
@@ -43,7 +43,7 @@ from app.workers.camera import (
     motion_end_message,
     status_fields,
 )
-from app.workers.hub import FrameHub, Kind, Picture, SentFrame
+from app.workers.hub import FrameHub, Kind, LiveFrame, Picture, SentFrame
 
 log = logging.getLogger("vigil.cameras")
 
@@ -105,7 +105,10 @@ class _WorkerLink:
 
 
 class _FrameSender:
-    """Encodes the newest frame of each watched camera and sends it to the server.
+    """Encodes the newest frame of each watched camera and sends it to the server: the
+    annotated picture for MJPEG viewers, the histogram, the /ws/live message (the
+    camera's own JPEG where it sent one, and the detections as data), each only while
+    someone watches it.
 
     One thread for the process. A frame replaced by a newer one before its turn is
     skipped, so a slow pipe costs frames, never delay.
@@ -115,7 +118,9 @@ class _FrameSender:
         self._link = link
         self._generations: dict[int, int] = {}
         self._watching: dict[int, dict[Kind, int]] = {}
-        self._pending: dict[int, Picture] = {}
+        self._widths: dict[int, int] = {}
+        """Per camera, the widest picture a /ws/live client needs (0: any)."""
+        self._pending: dict[int, LiveFrame] = {}
         self._wake = threading.Condition()
         self._stopped = False
         self._thread = threading.Thread(target=self._run, name="frame-sender", daemon=True)
@@ -128,15 +133,18 @@ class _FrameSender:
             self._watching.pop(camera_id, None)
             self._pending.pop(camera_id, None)
 
-    def watch(self, camera_id: int, generation: int, counts: dict[Kind, int]) -> None:
+    def watch(
+        self, camera_id: int, generation: int, counts: dict[Kind, int], live_width: int = 0
+    ) -> None:
         with self._wake:
             if self._generations.get(camera_id) == generation:
                 self._watching[camera_id] = counts
+                self._widths[camera_id] = live_width
 
     def offer(self, camera_id: int, item: Picture) -> None:
         with self._wake:
             if any(self._watching.get(camera_id, {}).values()):
-                self._pending[camera_id] = item
+                self._pending[camera_id] = cast(LiveFrame, item)  # A worker's own frames.
                 self._wake.notify()
 
     def stop(self) -> None:
@@ -152,16 +160,18 @@ class _FrameSender:
                     return
                 pending, self._pending = self._pending, {}
                 watching = {cid: dict(self._watching.get(cid, {})) for cid in pending}
+                widths = {cid: self._widths.get(cid, 0) for cid in pending}
                 generations = {cid: self._generations.get(cid) for cid in pending}
             for camera_id, item in pending.items():
                 counts = watching[camera_id]
                 try:
                     picture = item.jpeg() if counts.get("picture") else None
                     histogram = item.histogram_jpeg() if counts.get("histogram") else None
+                    live = item.live(camera_id, widths[camera_id]) if counts.get("live") else None
                 except Exception:  # One bad frame must not stop every camera's pictures.
                     log.exception("camera %s: cannot encode a frame", camera_id)
                     continue
-                message = ("frame", camera_id, generations[camera_id], picture, histogram)
+                message = ("frame", camera_id, generations[camera_id], picture, histogram, live)
                 self._link.send(message)
 
 
@@ -226,7 +236,7 @@ def run_cameras(conn: Connection, settings: Settings) -> None:
                 elif op == "update":
                     worker_or_none.update(**args[1])
                 elif op == "watch":
-                    sender.watch(args[0], args[1], args[2])
+                    sender.watch(*args)
     finally:
         for worker in workers.values():
             worker.request_stop()
@@ -299,14 +309,15 @@ class RemoteCamera:
         return ("start", self.row, self.generation, recovering)
 
     def watch_command(self) -> tuple[Any, ...]:
-        return ("watch", self.camera_id, self.generation, dict(self.hub.watching))
+        hub = self.hub
+        return ("watch", self.camera_id, self.generation, dict(hub.watching), hub.live_width)
 
     def _send_watching(self, _: dict[Kind, int]) -> None:
         self.process.send(self.watch_command())
 
-    def received(self, picture: bytes | None, histogram: bytes | None) -> None:
+    def received(self, picture: bytes | None, histogram: bytes | None, live: bytes | None) -> None:
         self._seq += 1
-        self.hub.publish(SentFrame(self._seq, picture, histogram))
+        self.hub.publish(SentFrame(self._seq, picture, histogram, live))
 
     def reported(self, message: Wire) -> Wire:
         """A status message from the camera process (its wire form): kept, and completed
@@ -418,10 +429,10 @@ class CameraProcess:
             if item[0] == "message":
                 self._forward(item[1], item[2])
             elif item[0] == "frame":
-                _, camera_id, generation, picture, histogram = item
+                _, camera_id, generation, picture, histogram, live = item
                 camera = self.cameras.get(camera_id)
                 if camera is not None and camera.generation == generation:
-                    camera.received(picture, histogram)
+                    camera.received(picture, histogram, live)
         conn.close()
         process.join(5.0)
         # Status 0: asked to exit, or stopped by SIGTERM with the server (systemd).

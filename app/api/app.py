@@ -48,6 +48,7 @@ def create_app(settings: Settings | None = None) -> FastAPI:
 
     @asynccontextmanager
     async def lifespan(_: FastAPI) -> AsyncIterator[None]:
+        services.loop = asyncio.get_running_loop()
         await asyncio.to_thread(services.start)
         restore = _end_streams_on_signal(services)
         try:

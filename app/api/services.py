@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import asyncio
 import logging
 import shutil
 import threading
@@ -31,6 +32,8 @@ class Services:
     def __init__(self, settings: Settings) -> None:
         self.settings = settings
         self.closing = False
+        self.loop: asyncio.AbstractEventLoop | None = None
+        """The server's event loop, set before ``start``: it reads the live frames."""
         self.bus = EventBus()
         self.db: Database | None = None
         self._snapshots: SnapshotStore | None = None
@@ -70,7 +73,7 @@ class Services:
         self._snapshots = SnapshotStore(
             settings.snapshots_dir, on_deleted=self.announce_deleted_snapshots
         )
-        self._cameras = CameraManager(settings, self.bus)
+        self._cameras = CameraManager(settings, self.bus, self.loop)
         self._analyses = AnalysisManager(
             self.db,
             self.bus,

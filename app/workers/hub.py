@@ -180,15 +180,13 @@ class SentFrame:
     seq: int
     picture: bytes | None
     histogram: bytes | None
-    live: bytes | None = None
-    """The /ws/live message of this frame (header and JPEG), sent as it is to every client."""
 
     def has(self, kind: Kind) -> bool:
         return self.made(kind) is not None
 
     def made(self, kind: Kind) -> bytes | None:
         if kind == "live":
-            return self.live
+            return None  # Live messages come apart (``FrameHub.offer_live``).
         return self.picture if kind == "picture" else self.histogram
 
     def jpeg(self) -> bytes:
@@ -205,8 +203,8 @@ class LiveSink(Protocol):
         """The newest message of camera ``key``; called from the thread that publishes."""
         ...
 
-    def wake(self) -> None:
-        """Something changed besides frames (the camera is going away)."""
+    def wake(self, resync: bool = False) -> None:
+        """Something changed besides frames; ``resync``: the camera is going away."""
         ...
 
 
@@ -215,8 +213,8 @@ class FrameHub:
 
     Viewers register with ``watch(kind)``; ``on_watch`` hears every change of the
     counts (a camera process sends only what is watched). A /ws/live client registers
-    with ``watch_live``: each frame's live message is handed to it as it is published,
-    and ``live_width`` is the widest picture any such client asked for.
+    with ``watch_live``: each frame's live message is handed to it as it comes
+    (``offer_live``), and ``live_width`` is the widest picture any such client asked for.
     """
 
     def __init__(self) -> None:
@@ -283,14 +281,18 @@ class FrameHub:
             self.on_publish(item)
         with self._lock:
             self._latest = item
-            waiters = list(self._waiters) if self._waiters else ()
-            sinks = list(self._sinks.items()) if self._sinks else ()
+            waiters = list(self._waiters)
         for loop, event in waiters:
             with contextlib.suppress(RuntimeError):
                 loop.call_soon_threadsafe(event.set)
-        if sinks and (message := item.made("live")) is not None:
-            for sink, (key, _) in sinks:
-                sink.offer(key, message)
+
+    def offer_live(self, message: bytes) -> None:
+        """A frame's /ws/live message, for every live client (it is not ``latest``: the
+        MJPEG viewers' frames come apart, and must not be taken for this)."""
+        with self._lock:
+            sinks = list(self._sinks.items())
+        for sink, (key, _) in sinks:
+            sink.offer(key, message)
 
     def close(self) -> None:
         """Wake every waiting viewer with None (the camera is going away)."""
@@ -302,7 +304,7 @@ class FrameHub:
             with contextlib.suppress(RuntimeError):
                 loop.call_soon_threadsafe(event.set)
         for sink in sinks:
-            sink.wake()
+            sink.wake(resync=True)
 
     async def next(self, after_seq: int, timeout: float, kind: Kind = "picture") -> Picture | None:
         """A frame newer than ``after_seq`` with a ``kind`` picture, or None after ``timeout``."""

@@ -62,7 +62,7 @@ def live_header(
     trails: Trails | None,
     mask: Mask | None,
 ) -> bytes:
-    """The header as UTF-8 JSON. Boxes and trails are in pixels of the camera's frame,
+    """The header as UTF-8 JSON. Boxes and trails are in (whole) pixels of the camera's frame,
     whose ``size`` [width, height] it gives (a picture encoded smaller is scaled up to it);
     a detection without a track has ``track_id`` null and no trail."""
     trails = trails or {}
@@ -71,8 +71,10 @@ def live_header(
             "box": d.box.as_list(),
             "track_id": d.track_id,
             "speed_px_s": round(d.speed_px_s, 1),
+            # Whole pixels, as the annotated picture draws them: a float's text takes
+            # json three times an int's, on up to 64 points a track and frame.
             "trail": [
-                [round(x, 1), round(y, 1)]
+                [int(x + 0.5), int(y + 0.5)]
                 for x, y in (trails.get(d.track_id, ()) if d.track_id is not None else ())
             ],
         }

@@ -5,8 +5,10 @@ from __future__ import annotations
 
 import base64
 import json
+import multiprocessing
 import struct
 import threading
+import time
 from pathlib import Path
 from typing import Any, cast
 
@@ -15,9 +17,10 @@ import numpy as np
 
 from app.sources.frames import DecodedFrame, JpegFrame
 from app.vision.detections import Box, Detection
-from app.workers.camera_host import _FrameSender, _Link
+from app.workers.frame_sender import FrameSender, Link
 from app.workers.hub import LiveFrame
 from app.workers.live_frames import live_message
+from app.workers.live_pipe import LivePipeReader, LivePipeWriter
 from tests.api.vigil_livekit import frame_at, wait_for, write_video
 from tests.workers.conftest import make_worker
 
@@ -49,7 +52,7 @@ def test_a_message_is_a_length_a_json_header_and_the_cameras_own_jpeg() -> None:
                 "box": [30, 90, 40, 40],
                 "track_id": 7,
                 "speed_px_s": 90.0,
-                "trail": [[40.0, 110.0], [44.2, 110.0], [50.0, 110.0]],
+                "trail": [[40, 110], [44, 110], [50, 110]],
             },
             {"box": [200, 10, 10, 10], "track_id": None, "speed_px_s": 0.0, "trail": []},
         ],
@@ -92,28 +95,55 @@ class _Pipe:
 def test_the_camera_process_sends_live_messages_only_while_watched_live(
     parts: dict[str, Any], tmp_path: Path
 ) -> None:
+    """A JPEG camera's live messages go over the live pipe, written by the camera's own
+    thread; the main pipe carries nothing while no MJPEG viewer or histogram watches."""
     worker = make_worker(parts, str(write_video(tmp_path / "v.avi")))
+    reading, writing = multiprocessing.Pipe(duplex=False)
+    received: list[tuple[int, int, bytes]] = []
+    reader = LivePipeReader(reading, lambda *message: received.append(message), None)
     pipe = _Pipe()
-    sender = _FrameSender(cast(_Link, pipe))
-    sender.start(worker.camera_id, 1)
+    sender = FrameSender(cast(Link, pipe), LivePipeWriter(writing))
+    sender.start(worker.camera_id, 7)
     worker.hub.on_publish = lambda item: sender.offer(worker.camera_id, item)
     worker.start()
     try:
         wait_for(lambda: worker.frames >= 10, 10, "frames")
-        assert pipe.sent == []  # Nobody watches: nothing is made or sent.
-        sender.watch(worker.camera_id, 1, {"picture": 0, "histogram": 0, "live": 1}, 320)
-        wait_for(lambda: len(pipe.sent) >= 5, 10, "live frames")
-        for kind, camera_id, generation, picture, histogram, live in pipe.sent[:5]:
-            assert (kind, camera_id, generation) == ("frame", worker.camera_id, 1)
-            assert picture is None and histogram is None  # No MJPEG viewer: not drawn.
-            header, jpeg = parse(live)
+        assert received == []  # Nobody watches: nothing is made or sent.
+        sender.watch(worker.camera_id, 7, {"picture": 0, "histogram": 0, "live": 1}, 320)
+        wait_for(lambda: len(received) >= 5, 10, "live frames")
+        for camera_id, generation, message in received[:5]:
+            assert (camera_id, generation) == (worker.camera_id, 7)
+            header, jpeg = parse(message)
             assert header["camera_id"] == worker.camera_id and jpeg[:2] == b"\xff\xd8"
-        assert worker.encodes.frames == 0
-        sender.watch(worker.camera_id, 1, {"picture": 0, "histogram": 0, "live": 0}, 0)
-        count = len(pipe.sent)
-        wait_for(lambda: worker.frames >= 40, 10, "more frames")
-        assert len(pipe.sent) <= count + 1  # One may have been under way.
+        assert pipe.sent == [] and worker.encodes.frames == 0  # No MJPEG viewer: not drawn.
+        sender.watch(worker.camera_id, 7, {"picture": 1, "histogram": 0, "live": 1}, 320)
+        wait_for(lambda: len(pipe.sent) >= 3, 10, "MJPEG pictures too")
+        kind, camera_id, generation, picture, histogram = pipe.sent[-1]
+        assert (kind, camera_id, generation, histogram) == ("frame", worker.camera_id, 7, None)
+        assert picture[:2] == b"\xff\xd8"
+        sender.watch(worker.camera_id, 7, {"picture": 0, "histogram": 0, "live": 0}, 0)
+        count = len(received)
+        wait_for(lambda: worker.frames >= 60, 10, "more frames")
+        assert len(received) <= count + 1  # One may have been under way.
     finally:
         worker.request_stop()
         worker.join(5)
         sender.stop()
+        writing.close()
+        reader.close()
+
+
+def test_a_full_live_pipe_drops_frames_and_never_blocks() -> None:
+    reading, writing = multiprocessing.Pipe(duplex=False)
+    writer = LivePipeWriter(writing)
+    message = b"x" * 100_000
+    started = time.monotonic()
+    written = sum(writer.write(1, 1, message) for _ in range(40))  # Nobody reads.
+    assert time.monotonic() - started < 1.0
+    assert 0 < written < 40 and writer.dropped == 40 - written
+    received: list[bytes] = []
+    reader = LivePipeReader(reading, lambda _c, _g, m: received.append(m), None)
+    wait_for(lambda: len(received) == written, 5, "what fitted")
+    assert all(m == message for m in received)  # Whole messages, none cut.
+    writer.close()
+    reader.close()

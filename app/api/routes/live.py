@@ -76,14 +76,29 @@ def parse_watch(text: str) -> Watch | None:
 
 class LiveClient:
     """One /ws/live connection's slots: the newest message of each camera, waiting to be
-    sent. Hubs offer from the threads that publish; the connection's task takes them."""
+    sent. Hubs offer from the threads that publish; the connection's task takes them.
+
+    Every ``RESYNC_S`` (and when a hub closes) ``resync`` is set and the task woken, to
+    look its cameras up again; between, a frame costs the task no lookup and no timer."""
 
     def __init__(self, loop: asyncio.AbstractEventLoop) -> None:
         self._loop = loop
+        self._thread = threading.get_ident()
+        """The loop's thread (the route runs in it)."""
         self._lock = threading.Lock()
         self._slots: dict[int, bytes] = {}
         self._event = asyncio.Event()
         self._woken = False
+        self.resync = True
+        self._ticker = loop.call_later(RESYNC_S, self._tick)
+
+    def _tick(self) -> None:
+        self.resync = True
+        self._event.set()
+        self._ticker = self._loop.call_later(RESYNC_S, self._tick)
+
+    def close(self) -> None:
+        self._ticker.cancel()
 
     def offer(self, key: int, message: bytes) -> None:
         with self._lock:
@@ -91,18 +106,22 @@ class LiveClient:
             if self._woken:
                 return  # The task is told already; it takes every slot at once.
             self._woken = True
-        self.wake()
-
-    def wake(self) -> None:
+        if threading.get_ident() == self._thread:  # The loop's own: it reads the frames.
+            self._event.set()
+            return
         with contextlib.suppress(RuntimeError):  # The loop is closed: nobody listens.
             self._loop.call_soon_threadsafe(self._event.set)
 
-    async def take(self, timeout: float) -> dict[int, bytes]:
-        """Every slot's message (emptying them), once there is one or something changed,
-        or none after ``timeout``."""
-        with contextlib.suppress(TimeoutError):
-            async with asyncio.timeout(timeout):
-                await self._event.wait()
+    def wake(self, resync: bool = False) -> None:
+        """Wake the task (from any thread); ``resync``: to look its cameras up again."""
+        if resync:
+            self.resync = True
+        with contextlib.suppress(RuntimeError):  # The loop is closed: nobody listens.
+            self._loop.call_soon_threadsafe(self._event.set)
+
+    async def take(self) -> dict[int, bytes]:
+        """Every slot's message (emptying them), once there is one or something changed."""
+        await self._event.wait()
         with self._lock:
             slots, self._slots = self._slots, {}
             self._woken = False
@@ -157,8 +176,10 @@ async def live(socket: WebSocket) -> None:
     reader = asyncio.create_task(_read_watches(socket, session))
     try:
         while not svc.closing and not reader.done():
-            session.sync()
-            messages = await client.take(RESYNC_S)
+            if client.resync:
+                client.resync = False
+                session.sync()
+            messages = await client.take()
             for camera_id, message in messages.items():
                 if camera_id in session.watched:  # Not one unwatched since it came.
                     await socket.send_bytes(message)
@@ -169,6 +190,7 @@ async def live(socket: WebSocket) -> None:
         return
     finally:
         reader.cancel()
+        client.close()
         session.close()
 
 

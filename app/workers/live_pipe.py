@@ -112,27 +112,21 @@ class LivePipeReader:
             self._loop.add_reader(self._fd, self._readable)
 
     def _readable(self) -> None:
+        """What the pipe holds now; at its end (the camera process gone), stop."""
         try:
             data = os.read(self._fd, READ_BYTES)
         except BlockingIOError:
             return
         except OSError:
             data = b""
-        if not data:
+        if data:
+            self._feed(data)
+        else:
             self._detach()
-            return
-        self._feed(data)
 
     def _read_forever(self) -> None:
         while not self._closed:
-            try:
-                data = os.read(self._fd, READ_BYTES)
-            except OSError:
-                data = b""
-            if not data:
-                self._detach()
-                return
-            self._feed(data)
+            self._readable()
 
     def _feed(self, data: bytes) -> None:
         buffer = self._buffer

@@ -14,10 +14,9 @@ import cv2
 import httpx
 import numpy as np
 import pytest
-from websockets.exceptions import InvalidStatus
-from websockets.sync.client import connect
 
 from app.workers.hub import Picture
+from tests.api.test_api_access import ws_status
 from tests.api.vigil_live_frames import LiveViewer, StuckViewer
 from tests.api.vigil_livekit import (
     FPS,
@@ -299,14 +298,6 @@ def test_the_annotated_mjpeg_picture_is_made_only_while_an_mjpeg_client_is_open(
 PASSWORD = "correct horse"
 
 
-def _handshake(url: str, **kwargs: Any) -> int:
-    try:
-        with connect(url, open_timeout=10, **kwargs):
-            return 101
-    except InvalidStatus as refused:
-        return refused.response.status_code
-
-
 @pytest.mark.parametrize("guarded", ["session", "origin"])
 def test_the_session_and_origin_rules_of_ws_hold(
     serve: Callable[..., Running], guarded: str
@@ -314,12 +305,12 @@ def test_the_session_and_origin_rules_of_ws_hold(
     if guarded == "origin":
         server = serve()
         host = server.base.removeprefix("http://")
-        assert _handshake(_url(server), origin="http://evil.example") == 403
-        assert _handshake(_url(server), additional_headers={"Sec-Fetch-Site": "cross-site"}) == 403
-        assert _handshake(_url(server), origin=f"http://{host}") == 101
+        assert ws_status(_url(server), origin="http://evil.example") == 403
+        assert ws_status(_url(server), additional_headers={"Sec-Fetch-Site": "cross-site"}) == 403
+        assert ws_status(_url(server), origin=f"http://{host}") == 101
         return
     server = serve(password=PASSWORD)
-    assert _handshake(_url(server)) == 403
+    assert ws_status(_url(server)) == 403
     with httpx.Client(base_url=server.base, timeout=10) as client:
         assert client.post("/api/login", json={"password": PASSWORD}).status_code == 200
         cookie = {"Cookie": f"vigil_session={client.cookies['vigil_session']}"}

@@ -105,8 +105,16 @@ def compare(base_tree: Path, args: argparse.Namespace) -> None:
     rounds: dict[str, list[dict[str, float]]] = {name: [] for name in trees}
     script = str(Path(__file__).resolve())
     command = [sys.executable, "-P", script, "--child", "--frames", str(args.frames)]
-    if args.data:
-        command += ["--data", str(args.data.resolve())]
+    # Both trees read the same frames: the shared data as this tree finds it (a worktree
+    # elsewhere has no ../shared beside it, and would fall back to the synthetic scene).
+    from _common import find_data_dir
+
+    data = find_data_dir(args.data)
+    if data is not None:
+        command += ["--data", str(data.resolve())]
+    clip = data / "clips" / "bgslibrary-video02.avi" if data else None
+    shown = clip if clip is not None and clip.exists() else "the synthetic crossing scene"
+    print(f"frames: the first {args.frames} of {shown}")
     for round_number in range(args.rounds):
         for name, tree in trees.items():
             environment = {**os.environ, "PYTHONPATH": f"{tree}:{tree / 'bench'}"}

@@ -53,7 +53,7 @@ def test_every_relative_link_resolves(page: Path) -> None:
 
 def _shown(value: Any) -> str:
     """A default as docs/configuration.md writes it."""
-    if value is None:
+    if value is None or value == "":
         return "unset"
     if isinstance(value, bool):
         return str(value).lower()

@@ -10,6 +10,7 @@ from typing import IO, Any
 import cv2
 
 from app.core.atomic import write_atomic
+from app.recording.mp4 import BackgroundMp4
 from app.vision.detections import Detection
 from app.vision.types import Image
 
@@ -61,16 +62,20 @@ class TracksCsv:
 
 
 class AnnotatedVideo:
-    """annotated.avi, Motion-JPEG: every OpenCV build writes it and every player reads it.
+    """annotated.avi, Motion-JPEG: every OpenCV build writes it and every player reads it;
+    and, given ``mp4``, annotated.mp4 with the same frames in H.264, which a browser plays.
 
     Frame for frame with the input: frame N of the video is decode index N, and a frame
     of the input that did not decode is the previous annotated frame again. Its frames
     are the input's size: FFmpeg's MJPEG encoder (4:2:0) would drop the last column and
     row of an odd-sized frame, so those are written by OpenCV's own MJPEG writer, and
-    so is every frame where OpenCV was built without FFmpeg.
+    so is every frame where OpenCV was built without FFmpeg. (H.264 needs even sides:
+    annotated.mp4 of an odd-sized video is a pixel larger.)
     """
 
-    def __init__(self, path: Path, fps: float, size: tuple[int, int]) -> None:
+    def __init__(
+        self, path: Path, fps: float, size: tuple[int, int], mp4: Path | None = None
+    ) -> None:
         fourcc = cv2.VideoWriter.fourcc(*"MJPG")
         odd = size[0] % 2 or size[1] % 2
         # FFmpeg's files are smaller at the same quality; OpenCV's writer is always built.
@@ -81,6 +86,8 @@ class AnnotatedVideo:
                 break
         else:
             raise OSError(f"cannot write video {path}")
+        self.fps = fps
+        self._mp4 = BackgroundMp4(mp4, fps) if mp4 is not None else None
         self._written = 0
         self._last: Image | None = None
 
@@ -88,9 +95,14 @@ class AnnotatedVideo:
         """Write ``frame`` as decode index ``index`` (default: the next one)."""
         if index is not None:
             self._repeat_until(index, frame)
-        self._writer.write(frame)
-        self._written += 1
+        self._put(frame)
         self._last = frame
+
+    def _put(self, frame: Image) -> None:
+        self._writer.write(frame)
+        if self._mp4 is not None:
+            self._mp4.write(frame, self._written / self.fps)
+        self._written += 1
 
     def pad_to(self, frames: int) -> None:
         """Repeat the last frame until the video holds ``frames`` frames."""
@@ -102,11 +114,12 @@ class AnnotatedVideo:
         # first one that did stands in for them.
         filler = self._last if self._last is not None else first
         while self._written < frames:
-            self._writer.write(filler)
-            self._written += 1
+            self._put(filler)
 
     def close(self) -> None:
         self._writer.release()
+        if self._mp4 is not None:
+            self._mp4.close()
 
 
 def write_json(path: Path, data: Any) -> None:

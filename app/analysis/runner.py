@@ -274,7 +274,12 @@ class _Analysis:
         if self.options.background_scan and self.pipeline.starts_from_scene:
             self.background = self._scan_background()
         tracks_csv = TracksCsv(self.out / "tracks.csv")
-        video = AnnotatedVideo(self.out / "annotated.avi", self.source.fps, self.source.size)
+        video = AnnotatedVideo(
+            self.out / "annotated.avi",
+            self.source.fps,
+            self.source.size,
+            mp4=self.out / "annotated.mp4",
+        )
         frames = 0
         try:
             for index, frame in self.source.indexed_frames():

@@ -25,6 +25,7 @@ from app.api.routes import (
     health,
     live,
     metrics,
+    notifications,
     pages,
     snapshots,
     streams,
@@ -48,33 +49,35 @@ def create_app(settings: Settings | None = None) -> FastAPI:
 
     @asynccontextmanager
     async def lifespan(_: FastAPI) -> AsyncIterator[None]:
-        services.loop = asyncio.get_running_loop()
+        services.loop = asyncio.get_running_loop()  # It reads the live frames.
+        # MQTT and the notifier hear the bus from before the cameras start, as /ws does.
+        mqtt = services.mqtt
+        if mqtt is not None:
+            mqtt.subscribe(services.bus)
+        heard = services.bus.subscribe()
         await asyncio.to_thread(services.start)
+        if mqtt is not None:
+            mqtt.start()
+        notifying = asyncio.create_task(services.notifier.follow(heard), name="notifier")
         restore = _end_streams_on_signal(services)
         try:
             yield
         finally:
             restore()
-            await asyncio.to_thread(services.stop)
+            if mqtt is not None:  # Its events end and it says offline, then the cameras stop.
+                await mqtt.stop()
+            await asyncio.to_thread(services.stop)  # Closes the bus: the notifier's end.
+            notifying.cancel()
+            with contextlib.suppress(asyncio.CancelledError):
+                await notifying
+            services.bus.unsubscribe(heard)
 
     application = FastAPI(title="Vigil", version=vigil_package.__version__, lifespan=lifespan)
     application.state.services = services
     application.state.settings = settings
     application.state.access = access
-    routers = (
-        health,
-        metrics,
-        auth,
-        cameras,
-        streams,
-        analyses,
-        events,
-        snapshots,
-        ws,
-        live,
-        pages,
-    )
-    for module in routers:
+    routers = (health, metrics, auth, cameras, streams, analyses, events, snapshots, notifications)
+    for module in (*routers, ws, live, pages):
         application.include_router(module.router)
     application.add_exception_handler(RequestValidationError, validation_error)
     if STATIC_DIR.is_dir():

@@ -1,4 +1,5 @@
-"""What the routers share: settings, database, snapshot files, workers and the message bus."""
+"""What the routers share: settings, database, snapshot files, workers, the message bus and
+the notifier."""
 
 from __future__ import annotations
 
@@ -13,13 +14,19 @@ from fastapi import HTTPException, Request
 from starlette.requests import HTTPConnection
 
 from app.core.config import Settings
-from app.events.messages import DELETED_IDS_PER_MESSAGE, SnapshotsDeleted
+from app.events.messages import DELETED_IDS_PER_MESSAGE, CameraStatus, SnapshotsDeleted
+from app.mqtt.bridge import MqttBridge
+from app.mqtt.broker import Broker
+from app.mqtt.mirror import CameraInfo
+from app.notify.notifier import Notifier
 from app.sources.live import without_password
+from app.storage.clips import ClipStore, finish_unfinished
 from app.storage.db import Database
 from app.storage.files import SnapshotStore, prune, prune_to_size
 from app.vision.motion import DEFAULT_METHOD
 from app.workers.analysis import AnalysisLimits, AnalysisManager
 from app.workers.bus import EventBus
+from app.workers.camera import STATUS_FIELDS
 from app.workers.camera_host import Camera
 from app.workers.manager import CameraManager
 
@@ -35,12 +42,25 @@ class Services:
         self.loop: asyncio.AbstractEventLoop | None = None
         """The server's event loop, set before ``start``: it reads the live frames."""
         self.bus = EventBus()
+        # Checks VIGIL_NOTIFY_URLS now: a URL Apprise cannot use stops the server's start.
+        self.notifier = Notifier(settings)
         self.db: Database | None = None
         self._snapshots: SnapshotStore | None = None
+        self._clips: ClipStore | None = None
         self._cameras: CameraManager | None = None
         self._analyses: AnalysisManager | None = None
         self._stopping = threading.Event()
         self._pruner: threading.Thread | None = None
+        self.mqtt: MqttBridge | None = None
+        """The MQTT bridge, with ``VIGIL_MQTT_URL``; run by the app's lifespan."""
+        if settings.mqtt_url:
+            self.mqtt = MqttBridge(
+                Broker.parse(settings.mqtt_url),
+                settings.mqtt_prefix,
+                settings.mqtt_discovery_prefix,
+                MqttControl(self),
+                settings.mqtt_reconnect_max_s,
+            )
 
     @property
     def database(self) -> Database:
@@ -52,6 +72,11 @@ class Services:
     def snapshots(self) -> SnapshotStore:
         assert self._snapshots is not None
         return self._snapshots
+
+    @property
+    def clips(self) -> ClipStore:
+        assert self._clips is not None
+        return self._clips
 
     @property
     def cameras(self) -> CameraManager:
@@ -73,6 +98,10 @@ class Services:
         self._snapshots = SnapshotStore(
             settings.snapshots_dir, on_deleted=self.announce_deleted_snapshots
         )
+        self._clips = ClipStore(settings.clips_dir)
+        finish_unfinished(self.db, self._clips)  # Clips the last run was recording.
+        # Before the cameras: the first alarm finds every target ready.
+        self.notifier.start(self.db, self._snapshots)
         self._cameras = CameraManager(settings, self.bus, self.loop)
         self._analyses = AnalysisManager(
             self.db,
@@ -103,15 +132,15 @@ class Services:
             try:
                 if settings.retention_days > 0:
                     before = time.time() - settings.retention_days * 86400
-                    removed = prune(self.database, self.snapshots, before)
+                    removed = prune(self.database, self.snapshots, before, clips=self.clips)
                     if removed:
-                        log.info("retention: removed %d old snapshots", removed)
+                        log.info("retention: removed %d old snapshots and clips", removed)
                 if settings.retention_mb > 0:
                     cap = int(settings.retention_mb * MB)
-                    removed = prune_to_size(self.database, self.snapshots, cap)
+                    removed = prune_to_size(self.database, self.snapshots, cap, clips=self.clips)
                     if removed:
                         log.info(
-                            "retention: removed %d snapshots to stay under %g MB",
+                            "retention: removed %d snapshots and clips to stay under %g MB",
                             removed,
                             settings.retention_mb,
                         )
@@ -126,8 +155,14 @@ class Services:
             chunk = ids[start : start + DELETED_IDS_PER_MESSAGE]
             self.bus.publish(SnapshotsDeleted(ids=chunk))
 
+    def mqtt_health(self) -> dict[str, Any]:
+        """``disabled`` without ``VIGIL_MQTT_URL``; else ``connected`` or ``disconnected``
+        (with the reason), the broker and since when."""
+        return {"state": "disabled"} if self.mqtt is None else self.mqtt.health()
+
     def storage(self) -> dict[str, Any]:
-        """Free space, the snapshots' total and cap, and why snapshots fail (None: they don't)."""
+        """Free space, the snapshots' and clips' totals and cap, and why snapshots or clips
+        fail (None: they don't)."""
         try:
             free_mb: float | None = round(shutil.disk_usage(self.settings.data_dir).free / MB, 1)
         except OSError:
@@ -135,6 +170,7 @@ class Services:
         return {
             "free_mb": free_mb,
             "snapshots_mb": round(self.database.snapshot_bytes() / MB, 3),
+            "clips_mb": round(self.database.clip_bytes() / MB, 3),
             "cap_mb": self.settings.retention_mb or None,
             "error": self.cameras.storage_error(),
         }
@@ -155,8 +191,42 @@ class Services:
         if self._cameras is not None:
             # A worker blocked in a network read returns within the read timeout.
             self._cameras.stop_all(timeout=self.settings.read_timeout_ms / 1000 + 2.0)
+        self.notifier.stop()
         if self.db is not None:
             self.db.close()
+
+    def set_active(self, camera_id: int, active: bool) -> dict[str, Any] | None:
+        """Activate or Stop a camera (``POST /api/cameras/{id}/activate|stop``, MQTT's
+        ``active/set``); the camera as the API shows it, None when there is none."""
+        camera = self.database.update_camera(camera_id, active=int(active))
+        if camera is None:
+            return None
+        worker = self.cameras.get(camera_id)
+        if worker is not None:
+            worker.set_active(active)  # Its status (on /ws) follows at once.
+        return self.camera_view(camera)
+
+    def change_camera(
+        self, camera_id: int, before: dict[str, Any], changes: dict[str, Any]
+    ) -> dict[str, Any] | None:
+        """Apply checked ``changes`` to a camera whose row was ``before`` (``PATCH
+        /api/cameras/{id}``, MQTT's ``sensitivity/set``): stored, given to its worker (a new
+        worker for a new source), and told to every page. The camera as the API shows it;
+        None when there is none."""
+        camera = self.database.update_camera(camera_id, **changes)
+        if camera is None:
+            return None
+        worker = self.cameras.get(camera_id)
+        if worker is None or ("source" in changes and changes["source"] != before["source"]):
+            self.cameras.start(camera)
+        else:
+            worker.update(**changes)
+        view = self.camera_view(camera)
+        # Every page shows the change at once, not at its next listing of the cameras.
+        status = {key: view[key] for key in STATUS_FIELDS if key in view}
+        changed = {key: view[key] for key in changes}
+        self.bus.publish(CameraStatus(**{"camera_id": camera_id, **status, **changed}))
+        return view
 
     def camera_view(self, camera: dict[str, Any]) -> dict[str, Any]:
         """A camera as the API shows it: its settings (the source ``without_password``), its
@@ -174,6 +244,52 @@ class Services:
             "histogram": f"{base}/histogram.mjpg",
             "frame": f"{base}/frame.jpg",
         }
+
+
+class MqttControl:
+    """What the MQTT bridge reads and does (``app.mqtt.bridge.Control``), through the same
+    methods as the API."""
+
+    def __init__(self, services: Services) -> None:
+        self.services = services
+
+    def cameras(self) -> list[CameraInfo]:
+        return [
+            CameraInfo(
+                camera_id=camera.camera_id,
+                name=str(camera.row["name"]),
+                active=bool(camera.row.get("active")),
+                sensitivity=camera.row.get("sensitivity"),
+            )
+            for camera in self.services.cameras.all()
+        ]
+
+    def set_active(self, camera_id: int, active: bool) -> bool:
+        return self.services.set_active(camera_id, active) is not None
+
+    def set_sensitivity(self, camera_id: int, sensitivity: float | None) -> bool:
+        svc = self.services
+        before = svc.database.camera(camera_id)
+        changes = {"sensitivity": sensitivity}
+        return before is not None and svc.change_camera(camera_id, before, changes) is not None
+
+    def snapshot_jpeg(self, snapshot_id: int) -> bytes | None:
+        svc = self.services
+        row = svc.database.snapshot(snapshot_id)
+        if row is None:
+            return None
+        try:
+            return svc.snapshots.path(row["path"]).read_bytes()
+        except (OSError, ValueError):  # Deleted meanwhile; a path outside the folder.
+            return None
+
+    def latest_snapshots(self, camera_ids: list[int]) -> dict[int, int]:
+        latest = {}
+        for camera_id in camera_ids:
+            rows = self.services.database.snapshots(camera_id=camera_id, kind="frame", limit=1)
+            if rows:
+                latest[camera_id] = int(rows[0]["id"])
+        return latest
 
 
 def services(request: HTTPConnection) -> Services:

@@ -3,8 +3,9 @@
 from __future__ import annotations
 
 from pathlib import Path
+from typing import Literal
 
-from pydantic import Field
+from pydantic import Field, field_validator
 from pydantic_settings import BaseSettings, SettingsConfigDict
 
 MAX_PORT = 65535
@@ -18,7 +19,7 @@ class Settings(BaseSettings):
     host: str = "127.0.0.1"
     port: int = Field(default=8000, ge=1, le=MAX_PORT)
     data_dir: Path = Path("data")
-    """Holds vigil.db (SQLite), snapshots/ and analyses/."""
+    """Holds vigil.db (SQLite), snapshots/, clips/ and analyses/."""
     password: str | None = Field(default=None, repr=False)
     """When set, every page and API call needs a login (``/login``) or HTTP basic auth with
     this password. The app keeps only its scrypt hash."""
@@ -66,12 +67,32 @@ class Settings(BaseSettings):
     of the last ones is the scene, so what is in view then and moving leaves no ghost."""
 
     retention_days: float = Field(default=30.0, ge=0)
-    """Snapshots and finished events older than this are deleted (0 = keep forever)."""
+    """Snapshots, clips, activity and finished events older than this are deleted (0 = keep
+    forever)."""
     retention_mb: float = Field(default=2048.0, ge=0)
-    """Cap on the snapshots' total size: the oldest go first, and an ended event with
-    its last snapshot (0 = no cap)."""
+    """Cap on the snapshots' and clips' total size: the oldest go first, and an ended event
+    with its last snapshot and clip (0 = no cap)."""
     retention_interval_s: float = Field(default=60.0, gt=0)
     """How often both limits are applied (and once at start)."""
+
+    # Recordings (app/recording/).
+    clips: bool = True
+    """Record a clip of each event of an activated camera (H.264 in MP4)."""
+    pre_roll_s: float = Field(default=3.0, ge=0, le=60)
+    """Seconds of video a clip starts before the event's first moving frame."""
+    post_roll_s: float = Field(default=2.0, ge=0, le=60)
+    """Seconds of video a clip goes on after the event's last moving frame."""
+    pre_roll_mb: float = Field(default=64.0, gt=0)
+    """Memory an activated camera's pre-roll may take: frames beyond it are let go, oldest
+    first, and the clip starts later (a decoded camera's frames are large: 0.45 MB at
+    640x480; a JPEG camera's are its JPEGs). Also what frames waiting for a clip's encoder
+    may take: past it, the clip loses frames, never detection."""
+    clip_preset: Literal["ultrafast", "superfast", "veryfast", "faster", "fast", "medium"] = (
+        "ultrafast"
+    )
+    """libx264's preset for clips and annotated.mp4 (bench/bench_recording.py)."""
+    clip_crf: int = Field(default=26, ge=0, le=51)
+    """libx264's constant rate factor: lower is better looking and larger."""
 
     # Uploads.
     analysis_workers: int = Field(default=1, ge=1)
@@ -84,6 +105,70 @@ class Settings(BaseSettings):
     """Address space each analysis process may use (0 = no limit): a decoder that tries
     to allocate more fails that analysis instead of starving the machine."""
 
+    # MQTT and Home Assistant (docs/mqtt.md).
+    mqtt_url: str | None = Field(default=None, repr=False)
+    """The broker, ``mqtt://user:password@host:1883`` (``mqtts://`` for TLS, port 8883 by
+    default); unset or empty: no MQTT at all. Its password is never shown."""
+    mqtt_prefix: str = "vigil"
+    """The first level of every topic Vigil publishes and listens to."""
+    mqtt_discovery_prefix: str = "homeassistant"
+    """Home Assistant's discovery prefix; empty: no discovery messages."""
+    mqtt_reconnect_max_s: float = Field(default=30.0, ge=0.5)
+    """Longest wait between attempts to reach a broker that is down (the wait doubles from
+    half a second up to this)."""
+
+    @field_validator("mqtt_url")
+    @classmethod
+    def _check_mqtt_url(cls, value: str | None) -> str | None:
+        if value is None or not value.strip():
+            return None
+        from app.mqtt.broker import Broker  # Here: app.core imports nothing else of Vigil.
+
+        Broker.parse(value.strip())  # ValueError: the reason, never the password.
+        return value.strip()
+
+    @field_validator("mqtt_prefix")
+    @classmethod
+    def _check_mqtt_prefix(cls, value: str) -> str:
+        return _topic_prefix(value, "a topic prefix")
+
+    @field_validator("mqtt_discovery_prefix")
+    @classmethod
+    def _check_discovery_prefix(cls, value: str) -> str:
+        return _topic_prefix(value, "a discovery prefix") if value.strip() else ""
+
+    # Notifications (app/notify, docs/notifications.md).
+    notify_urls: str = Field(default="", repr=False)
+    """Apprise URLs, separated by spaces, each added as a notification target at start
+    (``ntfys://my-topic tgram://bot-token/chat-id``). Kept while listed here; deleted when
+    no longer listed. Their secrets are shown masked."""
+    notify_gap_s: float = Field(default=30.0, ge=0)
+    """At most one message per event and target in this many seconds: an event's start
+    is always sent; its later alarms only once this long has passed since the last sent."""
+    public_url: str = ""
+    """The dashboard's address as its users reach it (``https://vigil.example.net``):
+    messages then carry links to the dashboard and the snapshot. Empty: no links."""
+    notify_timeout_s: float = Field(default=20.0, gt=0)
+    """Longest one attempt to send to a target may take (connecting, uploading the
+    snapshot, the answer); then it counts as failed."""
+    notify_retries: int = Field(default=3, ge=0, le=10)
+    """Attempts after the first for a message a target failed to take, waiting
+    ``notify_retry_s`` before the first retry and twice as long before each next."""
+    notify_retry_s: float = Field(default=2.0, gt=0)
+    """The wait before a failed message's first retry (doubled for each next one)."""
+
+    @field_validator("public_url")
+    @classmethod
+    def _check_public_url(cls, value: str) -> str:
+        value = value.strip().rstrip("/")
+        if value and not value.lower().startswith(("http://", "https://")):
+            raise ValueError("must start with http:// or https://")
+        return value
+
+    @property
+    def notify_url_list(self) -> list[str]:
+        return self.notify_urls.split()
+
     @property
     def db_path(self) -> Path:
         return self.data_dir / "vigil.db"
@@ -93,5 +178,21 @@ class Settings(BaseSettings):
         return self.data_dir / "snapshots"
 
     @property
+    def clips_dir(self) -> Path:
+        return self.data_dir / "clips"
+
+    @property
     def analyses_dir(self) -> Path:
         return self.data_dir / "analyses"
+
+
+def _topic_prefix(value: str, what: str) -> str:
+    """A prefix of MQTT topics: one or more levels, no wildcard, no empty level."""
+    value = value.strip()
+    if not value:
+        raise ValueError(f"{what} cannot be empty")
+    if any(c in value for c in "+#\0"):
+        raise ValueError(f"{what} cannot contain +, # or a NUL character")
+    if "" in value.split("/"):
+        raise ValueError(f"{what} cannot start or end with / or contain //")
+    return value

@@ -117,6 +117,12 @@ class MotionEnd(WsMessage):
     """``ended_at - started_at``."""
     max_area: Number
     """The largest object's area, in pixels of the frame."""
+    clip: str | None
+    """URL of the event's clip (H.264 in MP4; it may still be recording its post-roll, and
+    plays meanwhile); null when it has none (``VIGIL_CLIPS`` off, or the disk refused it)."""
+    clip_s: Number | None
+    """The clip's length in seconds, from ``VIGIL_PRE_ROLL_S`` before the event's first
+    moving frame to ``VIGIL_POST_ROLL_S`` after its last; null without a clip."""
 
 
 class Progress(WsMessage):
@@ -191,7 +197,7 @@ class CameraStatus(WsMessage):
     process: int | None = None
     """The camera process it runs in (not after a ``PATCH``)."""
     storage_error: str | None = None
-    """Only when snapshots start or stop failing: why (null: saved again)."""
+    """Only when snapshots or clips start or stop failing: why (null: saved again)."""
     name: str | None = None
     """This and the fields below: only after a ``PATCH`` that changed them."""
     source: str | None = None

@@ -14,6 +14,7 @@ from typing import IO, TYPE_CHECKING, Any, cast
 from app.core.atomic import write_atomic
 
 if TYPE_CHECKING:
+    from app.storage.clips import ClipStore
     from app.storage.db import Database
 
 
@@ -36,54 +37,76 @@ def describe_write_error(exc: OSError) -> str:
     return known or f"cannot write ({exc.strerror or type(exc).__name__})"
 
 
-class SnapshotStore:
-    """JPEG files under ``root/<camera id>/<day>/``; the database keeps paths relative to root.
+def dated(camera_id: int, ts: float, suffix: str) -> str:
+    """``<camera id>/<day>/<HHMMSSmmm><suffix>``: a camera's file of time ``ts`` (UTC)."""
+    day = time.strftime("%Y-%m-%d", time.gmtime(ts))
+    stamp = time.strftime("%H%M%S", time.gmtime(ts)) + f"{int(ts * 1000) % 1000:03d}"
+    return f"{camera_id}/{day}/{stamp}{suffix}"
 
-    It remembers, per camera, why the last write failed until one succeeds, so a
-    burst of failures is reported once and its end is noticed. ``on_deleted`` is told of
-    every snapshot deleted through it, by hand or by retention (a batch at a time) alike.
-    """
 
-    def __init__(self, root: Path, on_deleted: SnapshotsDeleted | None = None) -> None:
+class CameraFiles:
+    """Files under ``root``, kept by their path relative to it (the database keeps that),
+    and per camera why the last write failed, until one succeeds: so a burst of failures
+    is reported once and its end is noticed. ``kind`` names the files in messages."""
+
+    kind = "file"
+
+    def __init__(self, root: Path) -> None:
         self.root = root
-        self.on_deleted = on_deleted
         root.mkdir(parents=True, exist_ok=True)
         self._failures: dict[int, str] = {}
         self._lock = threading.Lock()
 
-    def save(self, camera_id: int, ts: float, kind: str, data: bytes, event_id: int | None) -> str:
-        """Write one JPEG, durably: the row the caller adds next must not outlive its file.
+    def failed(self, camera_id: int, exc: OSError) -> str:
+        """Note why a write for ``camera_id`` failed; the reason, for people."""
+        reason = describe_write_error(exc)
+        with self._lock:
+            self._failures[camera_id] = reason
+        return reason
 
-        Raises OSError (disk full, read-only...), after noting the reason.
-        """
-        day = time.strftime("%Y-%m-%d", time.gmtime(ts))
-        stamp = time.strftime("%H%M%S", time.gmtime(ts)) + f"{int(ts * 1000) % 1000:03d}"
-        name = f"{stamp}-e{event_id or 0}-{kind}.jpg"
-        relative = f"{camera_id}/{day}/{name}"
-        try:
-            write_atomic(self.root / relative, data, durable=True)
-        except OSError as exc:
-            with self._lock:
-                self._failures[camera_id] = describe_write_error(exc)
-            raise
+    def written(self, camera_id: int) -> None:
         with self._lock:
             self._failures.pop(camera_id, None)
-        return relative
 
     def failure(self, camera_id: int) -> str | None:
-        """Why the camera's last snapshot could not be written; None once one succeeds."""
+        """Why the camera's last write failed; None once one succeeds."""
         with self._lock:
             return self._failures.get(camera_id)
 
     def path(self, relative: str) -> Path:
         resolved = (self.root / relative).resolve()
         if not resolved.is_relative_to(self.root.resolve()):
-            raise ValueError("snapshot path outside the snapshot folder")
+            raise ValueError(f"{self.kind} path outside the {self.kind} folder")
         return resolved
 
     def delete(self, relative: str) -> None:
         with contextlib.suppress(FileNotFoundError, NotADirectoryError):  # Already gone.
             self.path(relative).unlink()
+
+
+class SnapshotStore(CameraFiles):
+    """JPEG files under ``root/<camera id>/<day>/``. ``on_deleted`` is told of every
+    snapshot deleted through it, by hand or by retention (a batch at a time) alike."""
+
+    kind = "snapshot"
+
+    def __init__(self, root: Path, on_deleted: SnapshotsDeleted | None = None) -> None:
+        super().__init__(root)
+        self.on_deleted = on_deleted
+
+    def save(self, camera_id: int, ts: float, kind: str, data: bytes, event_id: int | None) -> str:
+        """Write one JPEG, durably: the row the caller adds next must not outlive its file.
+
+        Raises OSError (disk full, read-only...), after noting the reason.
+        """
+        relative = dated(camera_id, ts, f"-e{event_id or 0}-{kind}.jpg")
+        try:
+            write_atomic(self.root / relative, data, durable=True)
+        except OSError as exc:
+            self.failed(camera_id, exc)
+            raise
+        self.written(camera_id)
+        return relative
 
     def delete_snapshots(self, db: Database, ids: list[int]) -> list[dict[str, Any]]:
         """Delete those of ``ids`` that exist and tell ``on_deleted`` their ids (nothing when
@@ -147,8 +170,15 @@ def stream_zip(files: Iterable[tuple[Path, str]], chunk_size: int = 1 << 16) -> 
         yield sink.take()
 
 
-def prune(db: Database, store: SnapshotStore, before: float, batch: int = 1000) -> int:
-    """Delete snapshots (rows and files) and finished events older than ``before``."""
+def prune(
+    db: Database,
+    store: SnapshotStore,
+    before: float,
+    batch: int = 1000,
+    clips: ClipStore | None = None,
+) -> int:
+    """Delete snapshots (rows and files), finished events with their clips, and the
+    activity history older than ``before``; how many snapshots and clips went."""
     removed = 0
     while True:
         rows = db.snapshots(until=before, limit=batch)
@@ -156,29 +186,63 @@ def prune(db: Database, store: SnapshotStore, before: float, batch: int = 1000) 
         if not rows:
             break
         removed += len(store.delete_snapshots(db, [r["id"] for r in rows]))
-    db.delete_events_before(before)
-    return removed
+    clip_paths = db.delete_events_before(before)
+    if clips is not None:
+        for relative in clip_paths:
+            clips.delete(relative)
+    return removed + len(clip_paths)
 
 
-def prune_to_size(db: Database, store: SnapshotStore, max_bytes: int, batch: int = 500) -> int:
-    """Delete the oldest snapshots until they total at most ``max_bytes``; returns how many.
+RETENTION = "deleted to stay under VIGIL_RETENTION_MB"
+"""An event's ``clip_error`` once the size cap has taken its clip."""
 
-    The running total in the database says when to stop, so a store under its cap
-    costs one query. An ended event goes with its last snapshot.
+
+def prune_to_size(
+    db: Database,
+    store: SnapshotStore,
+    max_bytes: int,
+    batch: int = 500,
+    clips: ClipStore | None = None,
+) -> int:
+    """Delete the oldest snapshots and clips until they total at most ``max_bytes``; returns
+    how many.
+
+    Oldest first, snapshots by their time and clips by their event's start, whichever is
+    older; a clip still being recorded stays. The running totals in the database say when
+    to stop, so a store under its cap costs two queries. An ended event goes with its last
+    snapshot and clip.
     """
     removed = 0
-    while (excess := db.snapshot_bytes() - max_bytes) > 0:
-        chosen: list[int] = []
-        for row in db.oldest_snapshots(batch):
-            chosen.append(row["id"])
-            excess -= row["size"]
+    while (excess := db.snapshot_bytes() + db.clip_bytes() - max_bytes) > 0:
+        candidates: list[tuple[float, int, str, int]] = [
+            (row["ts"], row["id"], "snapshot", row["size"]) for row in db.oldest_snapshots(batch)
+        ]
+        if clips is not None:
+            candidates += [
+                (row["started_at"], row["id"], "clip", row["clip_bytes"])
+                for row in db.oldest_clips(batch)
+            ]
+        candidates.sort()
+        chosen: dict[str, list[int]] = {"snapshot": [], "clip": []}
+        for _, row_id, kind, size in candidates[:batch]:
+            chosen[kind].append(row_id)
+            excess -= size
             if excess <= 0:
                 break
-        if not chosen:
+        if not chosen["snapshot"] and not chosen["clip"]:
             break
-        deleted = store.delete_snapshots(db, chosen)
-        removed += len(deleted)
-        db.delete_events_without_snapshots(
-            sorted({r["event_id"] for r in deleted if r["event_id"] is not None})
-        )
+        events: set[int] = set()
+        if chosen["snapshot"]:
+            deleted = store.delete_snapshots(db, chosen["snapshot"])
+            removed += len(deleted)
+            events.update(r["event_id"] for r in deleted if r["event_id"] is not None)
+        if clips is not None:
+            for event_id in chosen["clip"]:
+                event = db.event(event_id)
+                if event is not None and event["clip_path"]:
+                    db.drop_clip(event_id, RETENTION)
+                    clips.delete(event["clip_path"])
+                    removed += 1
+                    events.add(event_id)
+        db.delete_events_without_snapshots(sorted(events))
     return removed

@@ -20,6 +20,8 @@ import cv2
 from app.core.config import Settings
 from app.events.alarm import AlarmLogic, MotionEvent
 from app.events.messages import Alarm, AlarmObject, CameraStatus, MotionEnd
+from app.recording.activity import ActivityLog
+from app.recording.recorder import Recorder
 from app.sources.files import valid_fps
 from app.sources.frames import FrameError, SourceFrame
 from app.sources.live import (
@@ -72,6 +74,10 @@ long a stopped person is kept, are counted in frames)."""
 
 FPS_SLACK = 0.15
 """A measured frame rate this far (as a share) from detection's is taken by detection."""
+
+CLIPS_WAIT_S = 3.0
+"""How long a stopping worker waits for its clips to be written (else the next start
+finishes them)."""
 
 
 class EventRow(NamedTuple):
@@ -133,6 +139,10 @@ class CameraWorker:
         self._failures = 0
         self._glances: deque[GrayImage] = deque(maxlen=GLANCES)
         self._next_glance = 0.0
+        self.recorder = Recorder(self.camera_id, settings, db)
+        self._activity = ActivityLog(self.camera_id, db)
+        self._storage_error: str | None = None
+        """The storage error last published (snapshots' or clips')."""
 
     # Control, from any thread -------------------------------------------------------------
 
@@ -196,6 +206,7 @@ class CameraWorker:
         finally:
             with contextlib.suppress(Exception):  # Ending the open event is best effort here.
                 self._deactivate()
+            self.recorder.wait(CLIPS_WAIT_S)
             self._set_state("stopped", "")
 
     def _connect_and_stream(self, backoff: float) -> float:
@@ -334,10 +345,12 @@ class CameraWorker:
             update = alarms.update(result.index, result.time_s, result.detections)
             if update.started is not None:
                 self._alarm(update.started, live, result, now)
+                self._record_start(update.started, now_mono, now)
             elif update.newcomers and alarms.current is not None:
                 self._alarm(alarms.current, live, result, now)
             if update.ended is not None:
                 self._motion_end(update.ended)
+            self._record(frame, bool(result.detections), now_mono, now)
         if now_mono >= self._next_glance:
             # While detecting too, so that a Stop and a quick Activate again start from
             # the scene.
@@ -425,6 +438,7 @@ class CameraWorker:
         self.objects = 0
         self.motion = 0.0
         self.threshold = None
+        self._stop_recording()  # Before the event's end: its clip ends now, as it does.
         if alarms is not None:
             ended = alarms.finish()
             if ended is not None:
@@ -451,7 +465,6 @@ class CameraWorker:
             row_id = self.db.add_event(self.camera_id, now, boxes, event.max_area, track_ids)
             row = self._event_rows[event.id] = EventRow(row_id, now)
         event_id = row.id
-        failing_before = self.snapshots.failure(self.camera_id)
         ids: dict[str, int] = {}
         for kind, image in (("frame", picture), ("difference", difference)):
             data = encode_jpeg(image, 90)
@@ -463,7 +476,7 @@ class CameraWorker:
                 self.camera_id, event_id, now, kind, relative, len(data)
             )
         failing = self.snapshots.failure(self.camera_id)
-        if failing != failing_before:
+        if failing != self._storage_error:
             if failing:
                 log.warning(
                     "camera %s: snapshots not saved under %s: %s",
@@ -473,7 +486,7 @@ class CameraWorker:
                 )
             else:
                 log.info("camera %s: snapshots saved again", self.camera_id)
-            self.bus.publish(CameraStatus(**self.status(), storage_error=failing))
+        self._report_storage()
         self.last_alarm = now
         self.alarms += 1
         urls = {kind: f"/api/snapshots/{snapshot_id}.jpg" for kind, snapshot_id in ids.items()}
@@ -507,11 +520,46 @@ class CameraWorker:
             return
         ended_at = row.started_at + max(0.0, event.end_time_s - event.start_time_s)
         self.db.end_event(row.id, ended_at, event.max_area, sorted(event.track_ids))
+        clip, clip_s = self.recorder.end(row.id, time.monotonic())
         self.bus.publish(
             motion_end_message(
-                self.camera_id, row.id, ended_at, ended_at - row.started_at, event.max_area
+                self.camera_id,
+                row.id,
+                ended_at,
+                ended_at - row.started_at,
+                event.max_area,
+                clip,
+                clip_s,
             )
         )
+
+    # Recordings (app/recording/) ------------------------------------------------------------
+
+    def _record_start(self, event: MotionEvent, now_mono: float, now: float) -> None:
+        """A new event: its clip starts, from the pre-roll before this frame."""
+        row = self._event_rows.get(event.id)
+        if row is not None:
+            self.recorder.start(row.id, now_mono, now, self._frame_rate())
+            self._report_storage()
+
+    def _record(self, frame: SourceFrame, moving: bool, now_mono: float, now: float) -> None:
+        """Every frame detection saw: to the pre-roll and the clips being recorded, and its
+        moving share to the activity history."""
+        self.recorder.feed(frame, moving, now_mono, now)
+        self._activity.note(now, self.motion, now_mono)
+        self._report_storage()
+
+    def _stop_recording(self) -> None:
+        self.recorder.stop()
+        self._activity.flush(finished=True)
+
+    def _report_storage(self) -> None:
+        """A ``status`` with ``storage_error`` when saving snapshots or clips starts or stops
+        failing (once each)."""
+        failing = self.snapshots.failure(self.camera_id) or self.recorder.failure()
+        if failing != self._storage_error:
+            self._storage_error = failing
+            self.bus.publish(CameraStatus(**self.status(), storage_error=failing))
 
     # Status -------------------------------------------------------------------------------
 
@@ -575,15 +623,24 @@ STATUS_FIELDS = tuple(status_fields(0))
 
 
 def motion_end_message(
-    camera_id: int, event_id: int, ts: float, duration_s: float, max_area: float
+    camera_id: int,
+    event_id: int,
+    ts: float,
+    duration_s: float,
+    max_area: float,
+    clip: str | None = None,
+    clip_s: float | None = None,
 ) -> MotionEnd:
-    """The ``motion_end`` message on /ws: an event of a camera ended at ``ts``."""
+    """The ``motion_end`` message on /ws: an event of a camera ended at ``ts``; its clip's
+    URL and length, if it has one."""
     return MotionEnd(
         camera_id=camera_id,
         event_id=event_id,
         ts=ts,
         duration_s=round(duration_s, 3),
         max_area=round(max_area, 1),
+        clip=clip,
+        clip_s=None if clip_s is None else round(clip_s, 3),
     )
 
 

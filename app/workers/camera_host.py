@@ -34,6 +34,8 @@ import cv2
 
 from app.core.config import Settings
 from app.events.messages import CameraStatus, Wire, WsMessage
+from app.recording.recorder import clip_url
+from app.storage.clips import ClipStore, finish_unfinished
 from app.storage.db import Database
 from app.storage.files import SnapshotStore
 from app.vision.pipeline import warm_up
@@ -122,6 +124,7 @@ def run_cameras(conn: Connection, settings: Settings, live_conn: Connection | No
     link = Link(conn)
     db = Database(settings.db_path)
     snapshots = SnapshotStore(settings.snapshots_dir)
+    clips = ClipStore(settings.clips_dir)
     sender = FrameSender(link, LivePipeWriter(live_conn) if live_conn is not None else None)
     workers: dict[int, CameraWorker] = {}
 
@@ -144,7 +147,7 @@ def run_cameras(conn: Connection, settings: Settings, live_conn: Connection | No
                 remove(row["id"])
                 worker_link = _WorkerLink(link, generation)
                 if recovering:  # The process before this one died with its events open.
-                    _end_events(db, worker_link, row["id"])
+                    _end_events(db, worker_link, row["id"], clips)
                 sender.start(row["id"], generation)
                 worker = CameraWorker(row, settings, db, snapshots, worker_link)
                 worker.hub.on_publish = lambda item, cid=row["id"]: sender.offer(cid, item)
@@ -169,12 +172,25 @@ def run_cameras(conn: Connection, settings: Settings, live_conn: Connection | No
             db.close()
 
 
-def _end_events(db: Database, link: _WorkerLink, camera_id: int) -> None:
+def _end_events(
+    db: Database, link: _WorkerLink, camera_id: int, clips: ClipStore | None = None
+) -> None:
+    """The camera's process died: its open events end, and its clips being recorded are
+    finished as far as they got."""
+    if clips is not None:
+        finish_unfinished(db, clips, camera_id)
     for event in db.close_open_events(camera_id):
         duration_s = event["ended_at"] - event["started_at"]
+        clip = clip_url(event["id"]) if event["clip_path"] else None
         link.publish(
             motion_end_message(
-                camera_id, event["id"], event["ended_at"], duration_s, event["max_area"]
+                camera_id,
+                event["id"],
+                event["ended_at"],
+                duration_s,
+                event["max_area"],
+                clip,
+                event["clip_s"] if clip else None,
             )
         )
 

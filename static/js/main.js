@@ -5,6 +5,7 @@ import { LiveFrames } from "./api/live-frames.js";
 import { ServerSocket } from "./api/socket.js";
 import { snapshotDeleted, snapshotIdOf, snapshotUrl } from "./api/snapshots.js";
 import { CameraFilter } from "./components/camera-filter.js";
+import { MqttBadge } from "./components/mqtt-badge.js";
 import { AlarmSound } from "./components/sound.js";
 import { Toasts } from "./components/toasts.js";
 import { Wall } from "./components/wall.js";
@@ -12,7 +13,9 @@ import { $ } from "./lib/dom.js";
 import { AlarmList, alarmToastHtml } from "./views/alarm-list.js";
 import { Analyses } from "./views/analyses.js";
 import { CameraGrid } from "./views/camera-grid.js";
+import { EventsView } from "./views/events.js";
 import { Gallery } from "./views/gallery.js";
+import { Notifications } from "./views/notifications.js";
 
 const CAMERA_LISTING_MS = 15000;  // Cameras added or deleted elsewhere show without /ws.
 const CHART_MS = 1000;
@@ -27,21 +30,28 @@ const toasts = new Toasts($("#toasts"), $("#toasts-more"));
 const sound = new AlarmSound($("#mute"));
 const cameras = new Cameras();
 const liveFrames = new LiveFrames();
+const mqttBadge = new MqttBadge($("#mqtt-state"));
 const cameraFilter = new CameraFilter($("#gallery-filter select[name=camera_id]"), cameras);
+const eventsFilter = new CameraFilter($("#events-filter select[name=camera_id]"), cameras);
 const socket = new ServerSocket($("#ws-state"), {
   opened(reconnected) {
     grid.updateAll();
     // A restarted server may have other cameras (/ws/live reconnects by itself).
     if (reconnected) {
+      mqttBadge.refresh();
       grid.load();
       gallery.load("shown");
       alarms.loadRecent();
+      events.load();
     }
   },
   closed: () => grid.updateAll(),
   handlers: {
     alarm: onAlarm,
-    motion_end: (message) => toasts.ended(`alarm:${alarms.end(message)}`),
+    motion_end: (message) => {
+      toasts.ended(`alarm:${alarms.end(message)}`);
+      events.heard();
+    },
     progress: (message) => analyses.onProgress(message),
     snapshots_deleted: (message) => onSnapshotsDeleted(message.ids),
     camera_status: (message) => grid.onStatus(message),
@@ -58,6 +68,8 @@ const grid = new CameraGrid({
   toasts,
   listed: () => {
     cameraFilter.render();
+    eventsFilter.render();
+    notifications.camerasChanged();
     wall.layout();
   },
 });
@@ -68,6 +80,8 @@ const alarms = new AlarmList($("#alarm-list"), $("#clear-alarms"), {
   camerasNoted: () => cameraFilter.render(),
 });
 const analyses = new Analyses($("#analyses"), $("#upload"));
+const events = new EventsView($("#events"), { cameras, toasts });
+const notifications = new Notifications($("#notifications"), cameras);
 const gallery = new Gallery($("#gallery"), {
   cameraName: (id) => cameras.name(id),
   noteCamera: (id) => cameraFilter.note(id),
@@ -83,7 +97,17 @@ function onAlarm(message) {
   sound.beep();
   grid.onAlarm(message.camera_id, message.ts);
   gallery.scheduleRefresh();
+  events.heard();
+  notifications.soon();
 }
+
+/* "Play" on an alarm's toast or in the alarm list: its event in the Events section. */
+document.addEventListener("click", (event) => {
+  const link = event.target.closest?.(".open-event");
+  if (!link) return;
+  event.preventDefault();
+  events.open(Number(link.dataset.event));
+});
 
 /* Snapshots deleted (by this page, or elsewhere as /ws tells): the alarms that showed them
    say so, and the toasts that show them lose the picture (their words say enough). */
@@ -122,8 +146,11 @@ document.addEventListener("visibilitychange", () => analyses.showStreams());
 grid.load().then(() => {
   gallery.load("fresh");
   alarms.loadRecent();
+  events.load();
 });
 analyses.load();
+mqttBadge.start();
+notifications.load();
 socket.connect();
 liveFrames.connect();
 setInterval(() => { if (socket.state !== "down") grid.load(); }, CAMERA_LISTING_MS);

@@ -8,6 +8,7 @@ import os
 import statistics
 from pathlib import Path
 
+import av
 import cv2
 import numpy as np
 import pytest
@@ -61,7 +62,8 @@ def test_every_output_file_has_the_mode_a_new_file_gets(analysed):
     umask = os.umask(0o022)
     os.umask(umask)
     files = [p for p in analysed.rglob("*") if p.is_file()]
-    assert {"report.json", "events.json", "tracks.csv", "annotated.avi"} <= {p.name for p in files}
+    expected = {"report.json", "events.json", "tracks.csv", "annotated.avi", "annotated.mp4"}
+    assert expected <= {p.name for p in files}
     modes = {p.relative_to(analysed).as_posix(): oct(p.stat().st_mode & 0o777) for p in files}
     assert set(modes.values()) == {oct(0o666 & ~umask)}, modes
 
@@ -128,6 +130,23 @@ def test_annotated_video_decodes_frame_for_frame_with_red_boxes(analysed):
     middle = frames[25].astype(int)
     red = (middle[..., 2] > 180) & (middle[..., 1] < 80) & (middle[..., 0] < 80)
     assert red.sum() > 50
+
+
+def test_annotated_mp4_holds_the_same_frames_in_h264(analysed):
+    """What a browser plays: H.264 in MP4, the frames of annotated.avi at the input's rate."""
+    avi = list(decode_all(analysed / "annotated.avi"))
+    with av.open(str(analysed / "annotated.mp4")) as container:
+        stream = container.streams.video[0]
+        assert stream.codec_context.name == "h264"
+        decoded = list(container.decode(stream))
+        length_s = container.duration / 1e6
+    mp4 = [f.to_ndarray(format="bgr24") for f in decoded]
+    times = [float(f.pts * f.time_base) for f in decoded]
+    assert len(mp4) == len(avi) == WALKER.frames
+    assert np.allclose(times, np.arange(WALKER.frames) / WALKER.fps, atol=1e-3)
+    assert length_s == pytest.approx(WALKER.frames / WALKER.fps, abs=0.01)
+    for index in (0, 25, WALKER.frames - 1):
+        assert np.abs(mp4[index].astype(int) - avi[index].astype(int)).mean() < 4, index
 
 
 def test_masks_are_zero_based_binary_and_full_size(analysed):

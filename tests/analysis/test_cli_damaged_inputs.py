@@ -134,6 +134,7 @@ def test_an_odd_frame_size_is_kept_in_the_annotated_video(tmp_path):
     assert len(annotated) == ODD.frames
     assert {f.shape for f in annotated} == {(191, 251, 3)}
     assert cv2.imread(str(out / "snapshots" / "event-0001.jpg")).shape == (191, 251, 3)
+    assert len(list(decode_all(out / "annotated.mp4"))) == ODD.frames  # 252x192: H.264's even.
     # Pixel for pixel the input's frame (up to JPEG), not a shifted or scaled copy: the
     # last column and row are there.
     for index in (0, 15):

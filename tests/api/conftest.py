@@ -9,6 +9,7 @@ from typing import Any
 import pytest
 
 from tests.api.vigil_livekit import Running, live_settings, running_server, write_video
+from tests.mqtt.mosquitto import Mosquitto
 
 
 @pytest.fixture
@@ -26,6 +27,24 @@ def serve(tmp_path: Path) -> Iterator[Callable[..., Running]]:
             return stack.enter_context(running_server(settings))
 
         yield start
+
+
+@pytest.fixture
+def mosquitto(tmp_path: Path) -> Iterator[Callable[..., Mosquitto]]:
+    """Start a real Mosquitto on a free loopback port (skips where it is not installed);
+    every broker started is stopped at the end of the test."""
+    brokers: list[Mosquitto] = []
+
+    def start(**options: Any) -> Mosquitto:
+        broker = Mosquitto(tmp_path / f"broker{len(brokers)}", **options)
+        brokers.append(broker)
+        return broker.start()
+
+    try:
+        yield start
+    finally:
+        for broker in brokers:
+            broker.stop()
 
 
 CHROMIUM = shutil.which("chromium") or shutil.which("chromium-browser")

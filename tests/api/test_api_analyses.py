@@ -53,6 +53,15 @@ def test_upload_is_analysed_with_progress(serve: Callable[..., Running], tmp_pat
     assert rows and set(rows[0]) >= {"frame", "track_id", "speed_px_s"}
     avi = httpx.get(f"{server.base}/api/analyses/{analysis_id}/annotated.avi")
     assert avi.status_code == 200 and avi.content[:4] == b"RIFF"
+    mp4_url = server.base + result["links"]["annotated_mp4"]
+    mp4 = httpx.get(mp4_url)
+    assert mp4.status_code == 200 and mp4.headers["content-type"] == "video/mp4"
+    assert mp4.content[4:8] == b"ftyp"
+    part = httpx.get(mp4_url, headers={"Range": "bytes=8-1007"})
+    assert part.status_code == 206 and part.content == mp4.content[8:1008]
+    assert part.headers["content-range"] == f"bytes 8-1007/{len(mp4.content)}"
+    # The chapters the page offers: events.json's events.
+    assert [e["start_time_s"] for e in result["events"]] and result["events"][0]["id"] == 1
     with httpx.stream("GET", f"{server.base}/api/analyses/{analysis_id}/stream.mjpg") as r:
         body = b"".join(r.iter_bytes())  # A finished analysis: its last frame, then the end.
     assert body.count(b"\xff\xd8") == 1

@@ -43,7 +43,12 @@ def test_motion_end_and_alarm_objects_keep_their_keys_and_rounding() -> None:
         "ts": 1700000000.25,
         "duration_s": 2.346,
         "max_area": 1234.6,
+        "clip": None,
+        "clip_s": None,
     }
+    clipped = motion_end_message(3, 7, 1.0, 2.0, 3.0, "/api/events/7/clip.mp4", 7.12345)
+    assert clipped.wire()["clip"] == "/api/events/7/clip.mp4"
+    assert clipped.wire()["clip_s"] == 7.123
     tracked = Detection(Box(1, 2, 30, 40), (16.0, 22.0), 1200, 0, 5, 3.14159, 47.123)
     assert _alarm_object(tracked).model_dump() == {
         "track_id": 5,

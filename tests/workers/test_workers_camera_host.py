@@ -7,7 +7,11 @@ import pickle
 from types import SimpleNamespace
 from typing import Any, cast
 
+import cv2
+
 from app.events.messages import CameraStatus, MotionEnd, WsMessage, parse_message
+from app.recording.mp4 import ClipFrame, H264Writer
+from app.storage import ClipStore
 from app.vision.motion import DEFAULT_METHOD
 from app.workers.bus import EventBus
 from app.workers.camera_host import (
@@ -17,7 +21,10 @@ from app.workers.camera_host import (
     _WorkerLink,
 )
 from app.workers.frame_sender import Link
+from tests.api.vigil_livekit import FPS, frame_at
 from tests.workers.conftest import make_worker
+
+JPEG = cv2.imencode(".jpg", frame_at(10))[1].tobytes()
 
 
 def test_a_camera_shows_a_new_workers_status_until_its_process_reports(
@@ -71,3 +78,25 @@ def test_events_a_dead_process_left_open_end_with_a_motion_end_over_the_pipe(
     assert pickle.loads(pickle.dumps(wire)) == wire
     assert isinstance(parse_message(wire), MotionEnd) and parse_message(wire).wire() == wire
     assert (wire["camera_id"], wire["event_id"], wire["ts"]) == (camera_id, event_id, 1000.0)
+
+
+def test_a_clip_a_dead_process_was_recording_is_finished_and_named_in_its_motion_end(
+    parts: dict[str, Any],
+) -> None:
+    db = parts["db"]
+    clips = ClipStore(parts["settings"].clips_dir)
+    camera_id = db.add_camera("cam", "demo", DEFAULT_METHOD, 100.0)
+    event_id = db.add_event(camera_id, 1000.0, [[1, 2, 3, 4]], 12.0, [1])
+    relative, path = clips.create(camera_id, 1000.0, event_id)
+    db.start_clip(event_id, relative, 997.0)
+    with path.open("wb", buffering=0) as file:  # Two seconds written, then the kill.
+        writer = H264Writer(file, FPS)
+        for i in range(int(2 * FPS) + 3):
+            writer.write(ClipFrame(i / FPS, 0.0, (320, 240), jpeg=JPEG), i / FPS)
+    sent: list[tuple[Any, ...]] = []
+    link = _WorkerLink(cast(Link, SimpleNamespace(send=sent.append)), 5)
+    _end_events(db, link, camera_id, clips)
+    ((_, _, wire),) = sent
+    assert wire["clip"] == f"/api/events/{event_id}/clip.mp4"
+    assert 1.0 <= wire["clip_s"] <= 2.2
+    assert wire["clip_s"] == db.event(event_id)["clip_s"]  # type: ignore[index]

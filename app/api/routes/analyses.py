@@ -12,9 +12,10 @@ from collections.abc import AsyncIterator
 from pathlib import Path
 from typing import Any, BinaryIO
 
-from fastapi import APIRouter, Form, HTTPException, Request, UploadFile
+from fastapi import APIRouter, Form, HTTPException, Request, Response, UploadFile
 from fastapi.responses import FileResponse, JSONResponse, StreamingResponse
 
+from app.api.ranges import ranged_file
 from app.api.routes.inputs import check_min_area, is_control
 from app.api.routes.streams import MJPEG_TYPE, NO_CACHE, mjpeg_part
 from app.api.services import Services, services
@@ -136,15 +137,21 @@ def _view(svc: Services, row: dict[str, Any], full: bool) -> dict[str, Any]:
             "stream": f"{base}/stream.mjpg",
             "tracks": f"{base}/tracks.csv",
             "annotated": f"{base}/annotated.avi",
+            "annotated_mp4": f"{base}/annotated.mp4",
             "report": f"{base}/report.json",
             "report_html": f"{base}/report.html",
         },
         "report": None,
+        "events": None,
     }
     if full and row["status"] == "done":
-        report_path = svc.analyses.folder(analysis_id) / "out" / "report.json"
+        out_dir = svc.analyses.folder(analysis_id) / "out"
+        report_path = out_dir / "report.json"
         if report_path.is_file():
             out["report"] = json.loads(report_path.read_text())
+        events_path = out_dir / "events.json"  # The chapters of annotated.mp4.
+        if events_path.is_file():
+            out["events"] = json.loads(events_path.read_text()).get("events")
     return out
 
 
@@ -194,6 +201,15 @@ def annotated(request: Request, analysis_id: str) -> FileResponse:
         _output(request, analysis_id, "annotated.avi"),
         media_type="video/x-msvideo",
         filename=f"annotated-{analysis_id}.avi",
+    )
+
+
+@router.get("/{analysis_id}/annotated.mp4")
+def annotated_mp4(request: Request, analysis_id: str) -> Response:
+    """The annotated video in H.264, for the page's player: whole, or the range asked for."""
+    path = _output(request, analysis_id, "annotated.mp4")
+    return ranged_file(
+        request, path, "video/mp4", filename=f"annotated-{analysis_id}.mp4", cache="private"
     )
 
 

@@ -14,11 +14,9 @@ from pydantic import BaseModel, Field, field_validator
 
 from app.api.routes.inputs import STRICT, StrictJsonRoute, check_min_area, is_control
 from app.api.services import services
-from app.events.messages import CameraStatus
 from app.sources.live import MASK, has_masked_password, parse_source, with_stored_password
 from app.vision.motion import DEFAULT_METHOD, METHODS
 from app.vision.zones import as_polygons
-from app.workers.camera import STATUS_FIELDS
 
 router = APIRouter(prefix="/api/cameras", tags=["cameras"], route_class=StrictJsonRoute)
 
@@ -150,19 +148,9 @@ def change_camera(request: Request, camera_id: int, body: CameraPatch) -> dict[s
             changes["source"] = with_stored_password(changes["source"], before["source"])
         except ValueError as exc:
             raise HTTPException(422, str(exc)) from None
-    camera = svc.database.update_camera(camera_id, **changes)
-    if camera is None:
+    view = svc.change_camera(camera_id, before, changes)
+    if view is None:  # Deleted by another request in the meantime.
         raise HTTPException(404, f"no camera {camera_id}")
-    worker = svc.cameras.get(camera_id)
-    if worker is None or ("source" in changes and changes["source"] != before["source"]):
-        svc.cameras.start(camera)
-    else:
-        worker.update(**changes)
-    view = svc.camera_view(camera)
-    # Every page shows the change at once, not at its next listing of the cameras.
-    status = {key: view[key] for key in STATUS_FIELDS if key in view}
-    changed = {key: view[key] for key in changes}
-    svc.bus.publish(CameraStatus(**{"camera_id": camera_id, **status, **changed}))
     return view
 
 
@@ -185,13 +173,10 @@ class NoSettings(BaseModel):
 def _set_active(request: Request, camera_id: int, active: bool) -> dict[str, Any]:
     svc = services(request)
     _camera_or_404(request, camera_id)
-    camera = svc.database.update_camera(camera_id, active=int(active))
-    if camera is None:  # Deleted by another request in the meantime.
+    view = svc.set_active(camera_id, active)
+    if view is None:  # Deleted by another request in the meantime.
         raise HTTPException(404, f"no camera {camera_id}")
-    worker = svc.cameras.get(camera_id)
-    if worker is not None:
-        worker.set_active(active)
-    return svc.camera_view(camera)
+    return view
 
 
 @router.post("/{camera_id}/activate")

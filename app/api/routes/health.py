@@ -11,5 +11,8 @@ router = APIRouter()
 
 @router.get("/api/health")
 def health(request: Request) -> dict[str, Any]:
-    """``status`` is ``ok`` while the server answers; ``storage``: are snapshots being saved."""
-    return {"status": "ok", "storage": services(request).storage()}
+    """``status`` is ``ok`` while the server answers; ``storage``: are snapshots being saved;
+    ``mqtt``: ``disabled``, or ``connected`` / ``disconnected`` (with the reason) to the
+    broker. MQTT down is not the server down: ``status`` stays ``ok``."""
+    svc = services(request)
+    return {"status": "ok", "storage": svc.storage(), "mqtt": svc.mqtt_health()}

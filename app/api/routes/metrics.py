@@ -35,6 +35,32 @@ class VigilCollector:
         snapshots = GaugeMetricFamily("vigil_snapshots_bytes", "Disk space the snapshots use.")
         snapshots.add_metric([], svc.database.snapshot_bytes())
         yield snapshots
+        clips = GaugeMetricFamily("vigil_clips_bytes", "Disk space the event clips use.")
+        clips.add_metric([], svc.database.clip_bytes())
+        yield clips
+        yield from self._notifications()
+        mqtt = GaugeMetricFamily(
+            "vigil_mqtt_connected", "1 while connected to the MQTT broker (none without one)."
+        )
+        if svc.mqtt is not None:
+            mqtt.add_metric([], int(svc.mqtt.connected))
+        yield mqtt
+
+    def _notifications(self) -> Iterator[Metric]:
+        labels = ["target", "service"]
+        sent = CounterMetricFamily(
+            "vigil_notifications_sent", "Messages a target took.", labels=labels
+        )
+        failed = CounterMetricFamily(
+            "vigil_notifications_failed",
+            "Messages a target did not take, after every retry (or dropped from its queue).",
+            labels=labels,
+        )
+        for target_id, counts in self.services.notifier.counters().items():
+            target = [str(target_id), str(counts["service"])]
+            sent.add_metric(target, counts["sent"])
+            failed.add_metric(target, counts["failed"])
+        yield from (sent, failed)
 
     def _cameras(self) -> Iterator[Metric]:
         labels = ["camera"]

@@ -27,11 +27,17 @@ function objectsText(message) {
   return (message.boxes || []).map((b) => `${b[2]}×${b[3]} px at (${b[0]}, ${b[1]})`).join(", ");
 }
 
+/* A link that plays the event's clip in the Events section (main.js follows it). */
+function playLink(eventId) {
+  return eventId === null || eventId === undefined ? ""
+    : `<a href="#events" class="open-event" data-event="${Number(eventId)}">play</a>`;
+}
+
 /* The toast of an alarm of `name`, the `alarms`th of its event. */
 export function alarmToastHtml(message, name, alarms) {
   const repeats = alarms > 1 ? ` <span class="repeats">×${alarms}</span>` : "";
   return `<div class="toast-text"><b>Motion on ${escapeHtml(name)}</b>${repeats}<br>${formatTime(message.ts)} — `
-    + `${plural((message.boxes || []).length, "object")}</div>`
+    + `${plural((message.boxes || []).length, "object")} ${playLink(message.event_id)}</div>`
     + (message.snapshot ? `<img src="${message.snapshot}" alt="snapshot">` : "");
 }
 
@@ -78,7 +84,7 @@ export class AlarmList {
     item.dataset.camera = cameraId;
     item.innerHTML = `<span class="shot"><span class="muted">snapshot not saved</span></span>
     <div><b class="who"></b> — <span class="when"></span> <span class="alarms muted"></span><br>
-    <span class="objects"></span><br><span class="ongoing">moving…</span> <span class="links"></span></div>`;
+    <span class="objects"></span><br><span class="ongoing">moving…</span> <span class="links"></span> ${playLink(eventId)}</div>`;
     $(".when", item).textContent = formatDate(started);
     entry = { item, alarms: 0 };
     this.entries.set(key, entry);

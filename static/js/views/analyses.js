@@ -2,7 +2,7 @@
    ones on page load, each new upload) with its progress, live picture and result. */
 import { api, toLogin } from "../api/client.js";
 import { $, $$ } from "../lib/dom.js";
-import { resultHtml } from "../components/analysis-result.js";
+import { playerHtml, resultHtml } from "../components/analysis-result.js";
 
 const DISMISSED_KEY = "vigil.dismissedAnalyses";
 const SHOWN_ON_LOAD = 10;
@@ -39,6 +39,10 @@ class AnalysisPanel {
     <div class="live-view"></div><p class="error"></p><div class="result"></div>`;
     this.part(".file").textContent = filename || id;
     this.part(".dismiss").addEventListener("click", () => dismiss(this));
+    this.element.addEventListener("click", (event) => {
+      const chapter = event.target.closest(".chapter");
+      if (chapter) this.playFrom(Number(chapter.dataset.at));
+    });
   }
 
   /* The analysis's id, or "upload-<time>" until the server has given one. */
@@ -78,8 +82,16 @@ class AnalysisPanel {
   }
 
   showResult(analysis) {
-    this.part(".live-view").innerHTML = `<img alt="last analysed frame" src="${analysis.links.stream}?end=1">`;
+    this.part(".live-view").innerHTML = playerHtml(analysis);
     this.part(".result").innerHTML = resultHtml(analysis);
+  }
+
+  /* An event's chapter button: the video from that event's start. */
+  playFrom(seconds) {
+    const video = this.part("video.annotated");
+    if (!video) return;
+    video.currentTime = seconds;
+    video.play().catch(() => { /* the user presses play */ });
   }
 }
 

@@ -54,6 +54,7 @@ from multiprocessing.connection import Connection
 from pathlib import Path
 from typing import Any
 
+import _served
 import cv2
 from _common import Cell, add_data_argument, fmt, median, print_environment, print_table
 from bench_pipeline import load_footage, ping_pong, resized, write_mjpg
@@ -98,18 +99,43 @@ class Mode:
     activated: bool
     watched: bool
     method: str = DEFAULT_METHOD
+    viewer: str = "mjpeg"
+    """What watches: ``mjpeg`` (in a worker process: the MJPEG route's work, minus the
+    socket; in the server: a ``stream.mjpg`` client) or ``live`` (a /ws/live client)."""
+    served: bool = False
+    """In a real ``vigil serve`` (``_served.py``) rather than a bare worker process."""
 
     @property
     def label(self) -> str:
         state = "activated" if self.activated else "idle"
         method = "" if self.method == DEFAULT_METHOD else f", {self.method}"
-        return f"{state}, {'one viewer' if self.watched else 'unwatched'}{method}"
+        where = "vigil serve: " if self.served else ""
+        if not self.watched:
+            watched = "unwatched"
+        elif self.viewer == "live":
+            watched = "one /ws/live viewer (a page)"
+        else:
+            watched = "one MJPEG viewer" + ("" if self.served else " (in process)")
+        return f"{where}{state}, {watched}{method}"
 
 
 IDLE = Mode(activated=False, watched=False)
 ACTIVE = Mode(activated=True, watched=False)
 ACTIVE_WATCHED = Mode(activated=True, watched=True)
 IDLE_WATCHED = Mode(activated=False, watched=True)
+SERVED_ACTIVE = Mode(activated=True, watched=False, served=True)
+SERVED_PAGE = Mode(activated=True, watched=True, viewer="live", served=True)
+SERVED_MJPEG = Mode(activated=True, watched=True, served=True)
+SERVED_IDLE = Mode(activated=False, watched=False, served=True)
+SERVED_IDLE_PAGE = Mode(activated=False, watched=True, viewer="live", served=True)
+SERVED_MODES = (SERVED_ACTIVE, SERVED_PAGE, SERVED_MJPEG, SERVED_IDLE, SERVED_IDLE_PAGE)
+"""The rows of table (a) from a real server (one camera process), in the order they run."""
+VIEWER_TARGET = 1.15
+"""A page viewer's camera: at most this times the CPU per frame of the camera unwatched."""
+SLOW_FPS = 5.0
+"""Motion detects every frame up to 5 fps (above, 3 frames a second): table (a3)'s rate."""
+SLOW_TARGET = 0.6
+"""Vigil's CPU per frame at SLOW_FPS: at most this times Motion's."""
 CHEAPEST_METHOD = FrameDifference.name
 ACTIVE_CHEAPEST = Mode(activated=True, watched=False, method=CHEAPEST_METHOD)
 """Activated with the cheapest segmentation (one difference and threshold per pixel):
@@ -527,19 +553,22 @@ def motion_version() -> str:
     return found.group(1) if found else "?"
 
 
-def motion_config(clips: Sequence[Path], folder: Path) -> Path:
+def motion_config(
+    clips: Sequence[Path], folder: Path, fps: float = FPS, pictures: bool = False
+) -> Path:
     """The config of NOTES.md: each clip a network camera, detection on, no outputs. One
     camera is configured in the main file, as NOTES.md has it; more, one file each."""
     cameras = [
         [
             f"netcam_url file://{clip}",
-            f"netcam_params capture_rate={FPS:g}",
+            f"netcam_params capture_rate={fps:g}",
             f"width {SIZE[0]}",
             f"height {SIZE[1]}",
-            f"framerate {FPS:g}",
+            f"framerate {fps:g}",
             "threshold 1500",
             "despeckle_filter EedDl",
-            "picture_output off",
+            # A picture of each event's first motion frame, as Vigil saves its alarm's.
+            f"picture_output {'first' if pictures else 'off'}",
             "movie_output off",
             f"target_dir {folder / 'out'}",
         ]
@@ -574,21 +603,26 @@ class MotionRun:
     clip bytes it read / bytes per frame / seconds. A check that Motion took every frame,
     which its ms per frame assumes."""
     log_problems: list[str]
+    fps: float = FPS
+    """The rate it was run at."""
 
     @property
     def problems(self) -> list[str]:
         """The first of its log's errors and warnings (the cause, if any, comes first), and
         a reading rate below the sustained one."""
         late = f"Motion read {self.read_fps:.1f} fps per camera: its ms per frame is too low"
-        return self.log_problems[:4] + ([late] if self.read_fps < SUSTAINED_FPS else [])
+        slow = self.read_fps < self.fps * SUSTAINED_FPS / FPS
+        return self.log_problems[:4] + ([late] if slow else [])
 
 
-def measure_motion(clips: Sequence[Path], folder: Path, windows: Windows) -> MotionRun:
+def measure_motion(
+    clips: Sequence[Path], folder: Path, windows: Windows, fps: float = FPS, pictures: bool = False
+) -> MotionRun:
     """Motion's CPU over each of Vigil's ``windows`` with a camera per clip, frames taken
     as window x FPS per camera (it paces itself), after a warm-up a second longer (its
     cameras connect once it has started)."""
     windows = Windows(windows.warmup + MOTION_EXTRA_WARMUP_S, windows.length, windows.count)
-    config = motion_config(clips, folder)
+    config = motion_config(clips, folder, fps, pictures)
     proc = subprocess.Popen(
         [str(MOTION), "-n", "-c", str(config)],
         stdout=subprocess.DEVNULL,
@@ -610,14 +644,14 @@ def measure_motion(clips: Sequence[Path], folder: Path, windows: Windows) -> Mot
         except subprocess.TimeoutExpired:
             proc.kill()
             proc.wait()
-    frames = windows.length * FPS * len(clips)
+    frames = windows.length * fps * len(clips)
     per_frame = [1000 * (b - a) / frames for a, b in itertools.pairwise(marks)]
     seconds = windows.length * windows.count * len(clips)
     read_fps = (read[-1] - read[0]) / bytes_per_frame(clips) / seconds
     log = folder / "motion.log"
     text = log.read_text(errors="replace") if log.exists() else ""
     problems = [line for line in text.splitlines() if re.search(r"\[(ERR|WRN|ALR|CRT|EMG)\]", line)]
-    return MotionRun(per_frame, read_fps, problems)
+    return MotionRun(per_frame, read_fps, problems, fps)
 
 
 @dataclass(frozen=True)
@@ -641,6 +675,70 @@ class PacedRow:
     def ms(self) -> float:
         """Median over the windows of CPU ms per frame read."""
         return median(self.trial.ms_per_frame())
+
+
+@dataclass(frozen=True)
+class ServedRow:
+    """One camera in a real ``vigil serve`` (one camera process), in one mode."""
+
+    trial: Trial
+    camera_ms: list[float]
+    """Per window, the camera process's CPU ms per frame read (the rest is the server's)."""
+
+    @property
+    def label(self) -> str:
+        return f"Vigil {self.trial.mode.label}"
+
+    threads = "1 (server)"
+
+    @property
+    def ms(self) -> float:
+        return median(self.trial.ms_per_frame())
+
+    @property
+    def camera(self) -> float:
+        return median(self.camera_ms)
+
+
+def served_trial(
+    server: _served.Server, clips: Sequence[Path], mode: Mode, windows: Windows
+) -> tuple[Trial, list[float]]:
+    """Cameras of ``clips`` in ``server`` (camera i on clips[i]), measured over ``windows``
+    once all are live; the trial, and per window the camera processes' ms per frame."""
+    bounds = windows.bounds(0.0)
+    result = _served.run_served(
+        server,
+        clips,
+        mode.activated,
+        mode.viewer if mode.watched else None,
+        bounds,
+        machine_jiffies,
+    )
+    frames = [
+        sum(fps) * seconds for fps, seconds in zip(result.read_fps, result.seconds, strict=True)
+    ]
+    trial = Trial(
+        mode=mode,
+        read_fps=result.read_fps,
+        processed_fps=result.processed_fps,
+        viewer_fps=result.viewer_fps,
+        cpu_s=result.cpu_s,
+        frames=[round(f) for f in frames],
+        machine=[busy_cores(a, b) for a, b in itertools.pairwise(result.marks)],
+        alarms=result.alarms,
+        cores=[c / t for c, t in zip(result.cpu_s, result.seconds, strict=True)],
+    )
+    camera_ms = [
+        1000 * c / f if f else float("nan")
+        for c, f in zip(result.camera_cpu_s, frames, strict=True)
+    ]
+    return trial, camera_ms
+
+
+def measure_served_paced(clip: Path, folder: Path, windows: Windows) -> list[ServedRow]:
+    """Every mode of SERVED_MODES: one camera in ``vigil serve`` with one camera process."""
+    with _served.served(1, folder) as server:
+        return [ServedRow(*served_trial(server, [clip], mode, windows)) for mode in SERVED_MODES]
 
 
 def median_fps(series: list[list[float]]) -> float:
@@ -673,7 +771,9 @@ class Floor:
         return self.decode_ms + self.segment_ms
 
 
-def segmentation_floor(clip: Path, windows: Windows) -> tuple[list[float], list[float]]:
+def segmentation_floor(
+    clip: Path, windows: Windows, fps: float = FPS
+) -> tuple[list[float], list[float]]:
     """Per window, the thread CPU milliseconds per frame of what no activated camera
     with the default method can skip: its JPEG decoded to grey at detection size (as the
     camera decodes it), and that grey prepared (denoised) and segmented, one frame every
@@ -690,14 +790,14 @@ def segmentation_floor(clip: Path, windows: Windows) -> tuple[list[float], list[
             raise SystemExit(f"{clip} does not hand over JPEGs")
         jpegs.append(frame.jpeg)
     source.close()
-    pipeline = Pipeline(PipelineConfig(grey_stats=False), FPS)
+    pipeline = Pipeline(PipelineConfig(grey_stats=False), fps)
     bounds = windows.bounds(time.monotonic())
     decoding = [0.0] * windows.count
     segmenting = [0.0] * windows.count
     frames = [0] * windows.count
     due = time.monotonic()
     for jpeg in itertools.cycle(jpegs):
-        due += 1.0 / FPS
+        due += 1.0 / fps
         sleep_until(due)
         if due >= bounds[-1]:
             break
@@ -717,10 +817,10 @@ def segmentation_floor(clip: Path, windows: Windows) -> tuple[list[float], list[
     return per_frame(decoding), per_frame(segmenting)
 
 
-def measure_floor(clip: Path, windows: Windows) -> Floor:
+def measure_floor(clip: Path, windows: Windows, fps: float = FPS) -> Floor:
     """``segmentation_floor`` in a spawned process."""
     with mp.get_context("spawn").Pool(1) as pool:
-        decoding, segmenting = pool.apply(segmentation_floor, (clip, windows))
+        decoding, segmenting = pool.apply(segmentation_floor, (clip, windows, fps))
     return Floor(median(decoding), median(segmenting))
 
 
@@ -732,22 +832,105 @@ class CpuFigures:
     """``capacity`` of the activated, unwatched camera."""
     viewer_factor: float
     """Activated unwatched ms / activated watched ms: the share of cameras a viewer leaves."""
+    page_factor: float
+    """The same in ``vigil serve`` with a /ws/live viewer (a page)."""
 
 
-def measure_cpu(args: argparse.Namespace, clips: Sequence[Path], tmp: Path) -> CpuFigures:
-    """Sections (a) and (a2); returns the figures that seed section (b)'s search."""
+def measure_cpu(
+    args: argparse.Namespace, clips: Sequence[Path], slow_clip: Path, tmp: Path
+) -> CpuFigures:
+    """Sections (a), (a2) and (a3); returns the figures that seed section (b)'s search."""
     windows = Windows(args.warmup, args.cpu_window, args.repeat)
     paced = measure_paced(clips[0], tmp, windows)
+    # Frames in the server are counted from its status messages, one each STATUS_INTERVAL_S:
+    # windows of at least 3 s.
+    served_windows = Windows(args.warmup, max(args.cpu_window, 3.0), args.repeat)
+    served = measure_served_paced(clips[0], tmp, served_windows)
     floor = measure_floor(clips[0], windows)
     motion: MotionRun | None = None
     if MOTION.is_file():
         motion = measure_motion(clips[:1], tmp, windows)
-    print_paced(args, paced, motion, floor)
+    print_paced(args, paced, served, motion, floor)
     measure_at_load(args, clips, tmp, windows)
+    measure_slow(args, slow_clip, tmp)
     one = {row.trial.mode: row for row in paced if row.cv_threads == 1}
+    by_mode = {row.trial.mode: row for row in served}
     return CpuFigures(
-        capacity(one[ACTIVE].trial, args.max_cameras), one[ACTIVE].ms / one[ACTIVE_WATCHED].ms
+        capacity(one[ACTIVE].trial, args.max_cameras),
+        one[ACTIVE].ms / one[ACTIVE_WATCHED].ms,
+        by_mode[SERVED_ACTIVE].ms / by_mode[SERVED_PAGE].ms,
     )
+
+
+def measure_slow(args: argparse.Namespace, clip: Path, tmp: Path) -> None:
+    """Section (a3): one activated camera paced at SLOW_FPS (OpenCV 1 thread), the default
+    method and the cheapest, beside Motion on the same clip at the same rate: below 5 fps
+    Motion detects every frame, as Vigil does, so their CPU per frame compare like for
+    like (above, Motion detects 3 frames a second)."""
+    windows = Windows(args.warmup + 1.0, args.slow_window, args.repeat)
+    with worker_group(1, 1) as group:
+        trials = [
+            run_trial(group, [clip], tmp, 1, mode, windows) for mode in (ACTIVE, ACTIVE_CHEAPEST)
+        ]
+    rows: list[list[Cell]] = [
+        [
+            f"Vigil {trial.mode.label}",
+            fmt(median_fps(trial.read_fps), 2),
+            fmt(median_fps(trial.processed_fps), 2),
+            fmt(median(trial.ms_per_frame()), 2),
+        ]
+        for trial in trials
+    ]
+    motion = pictured = None
+    if MOTION.is_file():
+        motion = measure_motion([clip], tmp, windows, SLOW_FPS)
+        pictured = measure_motion([clip], tmp, windows, SLOW_FPS, pictures=True)
+    floor = measure_floor(clip, windows, SLOW_FPS)
+    rows.append(
+        [
+            f"Vigil decoding and segmentation alone ({DEFAULT_METHOD}, thread CPU)",
+            "-",
+            "-",
+            fmt(floor.ms, 2),
+        ]
+    )
+    if motion is not None and pictured is not None:
+        for run, what in ((motion, "pictures off"), (pictured, "a picture per event")):
+            rows.append(
+                [
+                    f"Motion {motion_version()} (detects every frame; {what})",
+                    fmt(run.read_fps, 2),
+                    f"{SLOW_FPS:g}",
+                    fmt(median(run.ms_per_frame), 2),
+                ]
+            )
+    print_table(
+        f"(a3) CPU per {SIZE[0]}x{SIZE[1]} frame at {SLOW_FPS:g} fps, both detecting every "
+        f"frame (one camera, OpenCV 1 thread; median of {args.repeat} windows of "
+        f"{args.slow_window:g} s)",
+        ["program", "read fps", "detect fps", "ms CPU/frame"],
+        rows,
+        note=f"    the clip: every 5th frame of (a)'s, written at {SLOW_FPS:g} fps",
+    )
+    if motion is None or pictured is None:
+        print(f"Motion: skipped, {MOTION} is absent")
+        return
+    motion_ms = median(motion.ms_per_frame)
+    for trial, label in zip(trials, ("Vigil activated", "  with frame-difference"), strict=True):
+        ratio = median(trial.ms_per_frame()) / motion_ms
+        verdict = "met" if ratio <= SLOW_TARGET else "NOT met"
+        target = f" (target <= {SLOW_TARGET:g}: {verdict})" if trial.mode == ACTIVE else ""
+        print(f"{label} / Motion at {SLOW_FPS:g} fps, CPU per frame: {fmt(ratio, 2)}{target}")
+    alarms = trials[0].alarms / sum(trial_frames for trial_frames in trials[0].frames)
+    print(
+        f"  decoding and segmentation alone: {fmt(floor.ms / motion_ms, 2)} x Motion (decoding "
+        f"{fmt(floor.decode_ms, 2)} ms, denoising and segmentation {fmt(floor.segment_ms, 2)});"
+        f" alarms on {fmt(100 * alarms, 1)}% of the frames (each two JPEG snapshots and rows,"
+        " which Motion, pictures off, does not make)"
+    )
+    with_pictures = median(trials[0].ms_per_frame()) / median(pictured.ms_per_frame)
+    print(f"  Vigil activated / Motion saving a picture per event: {fmt(with_pictures, 2)}")
+    print_motion_problems(motion)
 
 
 def measure_at_load(
@@ -796,15 +979,42 @@ def measure_at_load(
     print_motion_problems(motion)
 
 
+def print_viewers(paced: list[PacedRow], served: list[ServedRow]) -> None:
+    """What a viewer costs: each watched row over the same camera unwatched."""
+    by_mode = {row.trial.mode: row for row in served}
+    bare, page = by_mode[SERVED_ACTIVE], by_mode[SERVED_PAGE]
+    ratio = page.ms / bare.ms
+    verdict = "met" if ratio <= VIEWER_TARGET else "NOT met"
+    print(
+        f"A page (/ws/live) on an activated camera, vigil serve: {fmt(page.ms, 2)} ms/frame "
+        f"over {fmt(bare.ms, 2)} unwatched = {fmt(ratio, 2)} x (target <= "
+        f"{VIEWER_TARGET:g}: {verdict})\n"
+        f"    the camera process {fmt(bare.camera, 2)} -> {fmt(page.camera, 2)} ms, the server "
+        f"{fmt(bare.ms - bare.camera, 2)} -> {fmt(page.ms - page.camera, 2)} ms"
+    )
+    mjpeg = by_mode[SERVED_MJPEG]
+    one = {row.trial.mode: row for row in paced if row.cv_threads == 1}
+    print(
+        f"An MJPEG viewer (stream.mjpg) on it: {fmt(mjpeg.ms / bare.ms, 2)} x in vigil serve; "
+        f"{fmt(one[ACTIVE_WATCHED].ms / one[ACTIVE].ms, 2)} x in process (the route's work "
+        "without its pipe, server or socket, OpenCV 1 thread)"
+    )
+
+
 def print_motion_problems(motion: MotionRun) -> None:
     if motion.problems:
         print("Motion's problems:", *motion.problems, sep="\n    ")
 
 
 def print_paced(
-    args: argparse.Namespace, paced: list[PacedRow], motion: MotionRun | None, floor: Floor
+    args: argparse.Namespace,
+    paced: list[PacedRow],
+    served: list[ServedRow],
+    motion: MotionRun | None,
+    floor: Floor,
 ) -> None:
     motion_ms = median(motion.ms_per_frame) if motion is not None else float("nan")
+    both: list[PacedRow | ServedRow] = [*paced, *served]
     rows: list[list[Cell]] = [
         [
             row.label,
@@ -815,15 +1025,15 @@ def print_paced(
             fmt(row.ms, 2),
             fmt(row.ms / motion_ms, 2),
         ]
-        for row in paced
+        for row in both
     ]
     if motion is not None:
         rows.append(
             [
-                f"Motion {motion_version()} (detection on)",
+                f"Motion {motion_version()} (detection on, above 5 fps on 3 frames a second)",
                 "-",
                 fmt(motion.read_fps, 1),
-                f"{FPS:g}",
+                "3",
                 "-",
                 fmt(motion_ms, 2),
                 "1.00",
@@ -846,10 +1056,12 @@ def print_paced(
         note=(
             "    ms CPU/frame: worker process CPU (all threads) / frames read; Motion's frames"
             f" = window x {FPS:g}\n    (its read fps: clip bytes it read / bytes per frame, a"
-            " check)\n    x Motion: the row's ms/frame divided by Motion's"
-            " (above 1 = costs more)"
+            " check)\n    vigil serve: the server's CPU and its camera process's (all threads)"
+            " / frames read\n    x Motion: the row's ms/frame divided by Motion's"
+            " (above 1 = costs more); Motion detects 3 of the 25 frames a second, see (a3)"
         ),
     )
+    print_viewers(paced, served)
     if motion is None:
         print(f"Motion: skipped, {MOTION} is absent (Debian: apt-get install motion)")
     else:
@@ -957,32 +1169,73 @@ def search_model(
     ``guesses`` are where the searches start; a mode without one (the viewer, for the first
     model) starts from the unwatched result scaled by the viewer's cost in (a)."""
     windows = Windows(args.warmup, args.window)
-    found: dict[Mode, Found] = {}
     with worker_group(processes, server_cv_threads()) as group:
         label = model_label(processes, group.cv_threads[0])
         print(f"\n{label}:")
-        for mode in modes:
-            tried: dict[int, Trial] = {}
+        found = search(
+            lambda n, mode: run_trial(group, clips, folder, n, mode, windows),
+            modes,
+            guesses,
+            args.max_cameras,
+        )
+    return label, found
 
-            def passes(n: int, mode: Mode = mode, tried: dict[int, Trial] = tried) -> bool:
-                if n not in tried:
-                    tried[n] = run_trial(group, clips, folder, n, mode, windows)
-                    print_trial(n, tried[n])
-                return tried[n].sustained
 
-            # A viewer only adds work: an N that fails without one fails with one.
-            unwatched = found.get(ACTIVE)
-            ceiling = None
-            if mode.watched and unwatched is not None and unwatched.bounded:
-                ceiling = unwatched.cameras + 1
-            n, bounded = largest_sustained(passes, guesses[mode], ceiling, args.max_cameras)
-            found[mode] = Found(n, bounded, tried.get(n))
+def search(
+    trial: Callable[[int, Mode], Trial], modes: Sequence[Mode], guesses: dict[Mode, int], limit: int
+) -> dict[Mode, Found]:
+    """For each mode in turn (unwatched first), the largest N of cameras ``trial`` sustains."""
+    found: dict[Mode, Found] = {}
+    for mode in modes:
+        tried: dict[int, Trial] = {}
+
+        def passes(n: int, mode: Mode = mode, tried: dict[int, Trial] = tried) -> bool:
+            if n not in tried:
+                tried[n] = trial(n, mode)
+                print_trial(n, tried[n])
+            return tried[n].sustained
+
+        # A viewer only adds work: an N that fails without one fails with one.
+        unwatched = next((f for m, f in found.items() if not m.watched), None)
+        ceiling = None
+        if mode.watched and unwatched is not None and unwatched.bounded:
+            ceiling = unwatched.cameras + 1
+        n, bounded = largest_sustained(passes, guesses[mode], ceiling, limit)
+        found[mode] = Found(n, bounded, tried.get(n))
+    return found
+
+
+def search_served_model(
+    args: argparse.Namespace,
+    clips: Sequence[Path],
+    folder: Path,
+    processes: int,
+    guesses: dict[Mode, int],
+) -> tuple[str, dict[Mode, Found]]:
+    """As ``search_model``, in a real ``vigil serve`` with ``processes`` camera processes:
+    unwatched, then with a /ws/live viewer per camera (a page each)."""
+    windows = Windows(args.warmup, args.window)
+    label = f"vigil serve, {processes} camera process{'es' if processes > 1 else ''}"
+    print(f"\n{label} (OpenCV {Settings().opencv_threads or 'default'} thread(s) each):")
+    with _served.served(processes, folder) as server:
+        found = search(
+            lambda n, mode: served_trial(
+                server, [clips[i % len(clips)] for i in range(n)], mode, windows
+            )[0],
+            (SERVED_ACTIVE, SERVED_PAGE),
+            guesses,
+            args.max_cameras,
+        )
     return label, found
 
 
 def print_trial(n: int, trial: Trial) -> None:
     detect = trial.processed_fps[0]
-    watched = "one viewer" if trial.mode.watched else "unwatched "
+    watched = (
+        ("one page  " if trial.mode.viewer == "live" else "one viewer")
+        if trial.mode.watched
+        else "unwatched "
+    )
     viewer = f"viewer fps {median(trial.viewer_fps[0]):4.1f}  " if trial.mode.watched else ""
     cores = os.cpu_count() or 1
     verdict = "sustained" if trial.sustained else "NOT sustained"
@@ -1011,12 +1264,14 @@ def capacity(trial: Trial, limit: int) -> int:
 def measure_cameras(
     args: argparse.Namespace, clips: Sequence[Path], folder: Path, cpu: CpuFigures
 ) -> None:
-    """Section (b): one process, then two, each searched unwatched then watched."""
+    """Section (b): one process, then two, each searched unwatched then watched; then the
+    same in a real ``vigil serve`` with one and two camera processes, a page each."""
     print(
         f"\n(b) Cameras sustained: every activated camera runs detection on >= "
         f"{SUSTAINED_FPS:g} fps (and its viewer, where it has one, gets >= {SUSTAINED_FPS:g} "
         f"pictures a second) over {args.window:g} s after a {args.warmup:g} s warm-up; "
-        "CPU = cores used by the worker processes of the cores busy on the whole machine"
+        "CPU = cores used by the worker processes (in vigil serve: the server and its camera "
+        "processes) of the cores busy on the whole machine"
     )
     modes = (ACTIVE,) if args.quick else (ACTIVE, ACTIVE_WATCHED)
     results: dict[int, dict[Mode, Found]] = {}
@@ -1026,10 +1281,24 @@ def measure_cameras(
         labels[processes], results[processes] = search_model(
             args, clips, folder, processes, modes, guesses
         )
+    rows: list[list[Cell]] = [
+        [labels[p], *(str(results[p][m]) for m in modes), "MJPEG (in process)"] for p in results
+    ]
+    if not args.quick:
+        for processes in (1, 2):
+            unwatched = results[processes][ACTIVE].cameras
+            guesses = {
+                SERVED_ACTIVE: max(1, unwatched),
+                SERVED_PAGE: max(1, math.floor(unwatched * cpu.page_factor)),
+            }
+            label, found = search_served_model(args, clips, folder, processes, guesses)
+            rows.append(
+                [label, str(found[SERVED_ACTIVE]), str(found[SERVED_PAGE]), "/ws/live (a page)"]
+            )
     print_table(
         f"(b) Largest N of activated {SIZE[0]}x{SIZE[1]} {FPS:g} fps cameras sustained",
-        ["process model", "unwatched", "one viewer each"][: 1 + len(modes)],
-        [[labels[p], *(str(results[p][m]) for m in modes)] for p in results],
+        [*["process model", "unwatched", "one viewer each"][: 1 + len(modes)], "the viewer"],
+        rows if len(modes) > 1 else [[r[0], r[1], r[-1]] for r in rows],
     )
 
 
@@ -1054,9 +1323,10 @@ def next_guesses(
 # --- main ---------------------------------------------------------------------------------
 
 
-def make_clips(args: argparse.Namespace, folder: Path) -> tuple[list[Path], str]:
+def make_clips(args: argparse.Namespace, folder: Path) -> tuple[list[Path], Path, str]:
     """The looping camera clip (640x480, 25 fps MJPG AVI), first, then its copies starting
-    1/CLIP_PHASES, 2/CLIP_PHASES... of the loop further on; and where the frames came from."""
+    1/CLIP_PHASES, 2/CLIP_PHASES... of the loop further on; (a3)'s clip at SLOW_FPS (every
+    5th frame of the loop); and where the frames came from."""
     footage = load_footage(args.data, SOURCE_FRAMES, args.synthetic)
     frames = resized(ping_pong(footage.frames, 2 * len(footage.frames) - 2), SIZE)
     clips = []
@@ -1064,11 +1334,17 @@ def make_clips(args: argparse.Namespace, folder: Path) -> tuple[list[Path], str]
         start = phase * len(frames) // CLIP_PHASES
         loop = frames[start:] + frames[:start]  # The loop has no cut, so neither has this.
         clips.append(write_mjpg(loop, folder / f"camera-{phase}.avi", FPS))
-    return clips, (
-        f"{footage.description}; {len(footage.frames)} frames played forwards then backwards, "
-        f"resized to {SIZE[0]}x{SIZE[1]}, written as an MJPG AVI at {FPS:g} fps "
-        f"({len(frames) / FPS:.1f} s, looped), and {CLIP_PHASES - 1} copies starting "
-        f"{len(frames) / FPS / CLIP_PHASES:.1f} s apart for the cameras of (b)"
+    step = round(FPS / SLOW_FPS)
+    slow = write_mjpg(frames[::step], folder / "camera-slow.avi", SLOW_FPS)
+    return (
+        clips,
+        slow,
+        (
+            f"{footage.description}; {len(footage.frames)} frames played forwards then backwards, "
+            f"resized to {SIZE[0]}x{SIZE[1]}, written as an MJPG AVI at {FPS:g} fps "
+            f"({len(frames) / FPS:.1f} s, looped), and {CLIP_PHASES - 1} copies starting "
+            f"{len(frames) / FPS / CLIP_PHASES:.1f} s apart for the cameras of (b)"
+        ),
     )
 
 
@@ -1087,6 +1363,7 @@ def parse_args(argv: Sequence[str] | None = None) -> argparse.Namespace:
     args.window = args.window if args.window is not None else (2.0 if quick else 4.0)
     args.repeat = args.repeat if args.repeat is not None else (3 if quick else 5)
     args.cpu_window = 1.0 if quick else 3.0
+    args.slow_window = 3.0 if quick else 6.0
     if args.warmup < 0 or args.window <= 0 or args.repeat < 1 or args.max_cameras < 1:
         parser.error("--warmup >= 0, --window > 0, --repeat >= 1, --max-cameras >= 1")
     return args
@@ -1097,9 +1374,9 @@ def main(argv: Sequence[str] | None = None) -> None:
     started = time.perf_counter()
     print_environment("Vigil cameras benchmark")
     with tempfile.TemporaryDirectory(prefix="vigil-cameras-") as tmp:
-        clips, description = make_clips(args, Path(tmp))
+        clips, slow_clip, description = make_clips(args, Path(tmp))
         print(f"camera: {description}")
-        cpu = measure_cpu(args, clips, Path(tmp))
+        cpu = measure_cpu(args, clips, slow_clip, Path(tmp))
         measure_cameras(args, clips, Path(tmp), cpu)
     print(f"\ndone in {time.perf_counter() - started:.0f} s")
 

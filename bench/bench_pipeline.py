@@ -236,6 +236,15 @@ def frames_per_second(processor: Processor, source: Callable[[], Iterable[Image]
     return count / (time.perf_counter() - start)
 
 
+DECODING = "decoding alone"
+"""The with-decode job's reading and decoding, with nothing done to the frames."""
+
+
+class Nothing:
+    def process(self, frame: Image) -> None:
+        pass
+
+
 def stage_samples(pipeline: Pipeline) -> StageSamples:
     samples = {stage: list(values) for stage, values in pipeline.timings.items()}
     samples["total"] = [sum(frame) for frame in zip(*pipeline.timings.values(), strict=True)]
@@ -259,6 +268,7 @@ def measure_size(frames: list[Image], avi: Path, fps: float, repeats: int) -> Si
         DECODE: lambda: open_input(avi).frames(),
     }
     for _ in range(repeats):
+        result.rates[DECODING, DECODE].append(frames_per_second(Nothing(), sources[DECODE]))
         for contender in contenders():
             for mode in MODES:
                 processor = contender.build(fps)
@@ -363,6 +373,21 @@ def print_targets(results: dict[tuple[int, int], SizeResult]) -> None:
             ratio = median(result.rates[default, mode]) / median(result.rates[REFERENCE, mode])
             verdict = "met" if ratio >= TARGET_RATIO else "NOT met"
             print(f"    {size[0]}x{size[1]} {mode:<11}  {ratio:5.2f}x  {verdict}")
+    print("Where the with-decode time goes, ms per frame (1000 / the median frames/s):")
+    for size, result in results.items():
+        ms = {
+            label: 1000 / median(result.rates[label, DECODE])
+            for label in (DECODING, default, REFERENCE)
+        }
+        decode = ms[DECODING]
+        print(
+            f"    {size[0]}x{size[1]}: decoding alone {decode:.3f} (open_input, an MJPG AVI); "
+            f"MOG2 pipeline {ms[REFERENCE]:.3f} = that + {ms[REFERENCE] - decode:.3f}; "
+            f"{default} {ms[default]:.3f} = that + {ms[default] - decode:.3f}\n"
+            f"        {TARGET_RATIO:g}x needs {default} <= {ms[REFERENCE] / TARGET_RATIO:.3f}: "
+            f"its own part <= {ms[REFERENCE] / TARGET_RATIO - decode:.3f}, "
+            f"{(ms[REFERENCE] / TARGET_RATIO - decode) / (ms[default] - decode):.2f} of now"
+        )
 
 
 # --- paced frames ----------------------------------------------------------------------

@@ -23,6 +23,7 @@ from app.api.routes import (
     cameras,
     events,
     health,
+    live,
     metrics,
     notifications,
     pages,
@@ -48,6 +49,7 @@ def create_app(settings: Settings | None = None) -> FastAPI:
 
     @asynccontextmanager
     async def lifespan(_: FastAPI) -> AsyncIterator[None]:
+        services.loop = asyncio.get_running_loop()  # It reads the live frames.
         # MQTT and the notifier hear the bus from before the cameras start, as /ws does.
         mqtt = services.mqtt
         if mqtt is not None:
@@ -75,7 +77,7 @@ def create_app(settings: Settings | None = None) -> FastAPI:
     application.state.settings = settings
     application.state.access = access
     routers = (health, metrics, auth, cameras, streams, analyses, events, snapshots, notifications)
-    for module in (*routers, ws, pages):
+    for module in (*routers, ws, live, pages):
         application.include_router(module.router)
     application.add_exception_handler(RequestValidationError, validation_error)
     if STATIC_DIR.is_dir():

@@ -3,6 +3,7 @@ the notifier."""
 
 from __future__ import annotations
 
+import asyncio
 import logging
 import shutil
 import threading
@@ -38,6 +39,8 @@ class Services:
     def __init__(self, settings: Settings) -> None:
         self.settings = settings
         self.closing = False
+        self.loop: asyncio.AbstractEventLoop | None = None
+        """The server's event loop, set before ``start``: it reads the live frames."""
         self.bus = EventBus()
         # Checks VIGIL_NOTIFY_URLS now: a URL Apprise cannot use stops the server's start.
         self.notifier = Notifier(settings)
@@ -100,7 +103,7 @@ class Services:
         finish_unfinished(self.db, self._clips)  # Clips the last run was recording.
         # Before the cameras: the first alarm finds every target ready.
         self.notifier.start(self.db, self._snapshots)
-        self._cameras = CameraManager(settings, self.bus)
+        self._cameras = CameraManager(settings, self.bus, self.loop)
         self._analyses = AnalysisManager(
             self.db,
             self.bus,

@@ -8,8 +8,9 @@ each a set of ``CameraWorker`` threads, started as cameras need them. The server
 keeps a ``RemoteCamera`` per camera with the face the API uses (``Camera``: hub,
 status, activate, settings).
 A pipe per process carries commands one way and, the other way, status and
-alarm messages and the frames that someone watches (encoded in the camera
-process, only while watched). Each process opens the same SQLite database (WAL)
+alarm messages and the MJPEG pictures that someone watches (encoded in the camera
+process, only while watched); a second pipe carries /ws/live messages, read by the
+server's event loop (``app.workers.live_pipe``). Each process opens the same SQLite database (WAL)
 and snapshot folder, so an alarm's rows are committed before its message leaves.
 A camera process that dies is started again with its cameras, which meanwhile
 say why they are down.
@@ -17,6 +18,7 @@ say why they are down.
 
 from __future__ import annotations
 
+import asyncio
 import contextlib
 import itertools
 import logging
@@ -45,7 +47,9 @@ from app.workers.camera import (
     motion_end_message,
     status_fields,
 )
-from app.workers.hub import FrameHub, Kind, Picture, SentFrame
+from app.workers.frame_sender import FrameSender, Link
+from app.workers.hub import FrameHub, Kind, SentFrame
+from app.workers.live_pipe import LivePipeReader, LivePipeWriter
 
 log = logging.getLogger("vigil.cameras")
 
@@ -79,18 +83,6 @@ class Camera(Protocol):
 # --- the camera process --------------------------------------------------------------------
 
 
-class _Link:
-    """The camera process's end of the pipe: sends are whole messages, from any thread."""
-
-    def __init__(self, conn: Connection) -> None:
-        self._conn = conn
-        self._lock = threading.Lock()
-
-    def send(self, item: tuple[Any, ...]) -> None:
-        with self._lock, contextlib.suppress(OSError, ValueError):  # The server is gone.
-            self._conn.send(item)
-
-
 class _WorkerLink:
     """One worker's messages (status, alarms, motion_end), tagged with its generation: the
     server drops what an earlier worker of the same camera id still had in flight.
@@ -98,7 +90,7 @@ class _WorkerLink:
     A message crosses in its wire form, a plain dict: pickled in about a fifth of the
     time its model takes, at half the size."""
 
-    def __init__(self, link: _Link, generation: int) -> None:
+    def __init__(self, link: Link, generation: int) -> None:
         self._link = link
         self._generation = generation
 
@@ -106,69 +98,9 @@ class _WorkerLink:
         self._link.send(("message", self._generation, message.wire()))
 
 
-class _FrameSender:
-    """Encodes the newest frame of each watched camera and sends it to the server.
-
-    One thread for the process. A frame replaced by a newer one before its turn is
-    skipped, so a slow pipe costs frames, never delay.
-    """
-
-    def __init__(self, link: _Link) -> None:
-        self._link = link
-        self._generations: dict[int, int] = {}
-        self._watching: dict[int, dict[Kind, int]] = {}
-        self._pending: dict[int, Picture] = {}
-        self._wake = threading.Condition()
-        self._stopped = False
-        self._thread = threading.Thread(target=self._run, name="frame-sender", daemon=True)
-        self._thread.start()
-
-    def start(self, camera_id: int, generation: int) -> None:
-        """A (new) worker for ``camera_id``: nothing watched until the server says so."""
-        with self._wake:
-            self._generations[camera_id] = generation
-            self._watching.pop(camera_id, None)
-            self._pending.pop(camera_id, None)
-
-    def watch(self, camera_id: int, generation: int, counts: dict[Kind, int]) -> None:
-        with self._wake:
-            if self._generations.get(camera_id) == generation:
-                self._watching[camera_id] = counts
-
-    def offer(self, camera_id: int, item: Picture) -> None:
-        with self._wake:
-            if any(self._watching.get(camera_id, {}).values()):
-                self._pending[camera_id] = item
-                self._wake.notify()
-
-    def stop(self) -> None:
-        with self._wake:
-            self._stopped = True
-            self._wake.notify()
-
-    def _run(self) -> None:
-        while True:
-            with self._wake:
-                self._wake.wait_for(lambda: self._pending or self._stopped)
-                if self._stopped:
-                    return
-                pending, self._pending = self._pending, {}
-                watching = {cid: dict(self._watching.get(cid, {})) for cid in pending}
-                generations = {cid: self._generations.get(cid) for cid in pending}
-            for camera_id, item in pending.items():
-                counts = watching[camera_id]
-                try:
-                    picture = item.jpeg() if counts.get("picture") else None
-                    histogram = item.histogram_jpeg() if counts.get("histogram") else None
-                except Exception:  # One bad frame must not stop every camera's pictures.
-                    log.exception("camera %s: cannot encode a frame", camera_id)
-                    continue
-                message = ("frame", camera_id, generations[camera_id], picture, histogram)
-                self._link.send(message)
-
-
-def run_cameras(conn: Connection, settings: Settings) -> None:
-    """The camera process: run the cameras the server sends until it says exit or is gone."""
+def run_cameras(conn: Connection, settings: Settings, live_conn: Connection | None = None) -> None:
+    """The camera process: run the cameras the server sends until it says exit or is gone.
+    ``live_conn``: the live pipe's writing end (/ws/live messages)."""
     # Ctrl-C reaches the whole process group; the server decides when cameras stop. A
     # SIGTERM to the group (systemd) stops cleanly: open events end, exit status 0.
     signal.signal(signal.SIGINT, signal.SIG_IGN)
@@ -189,11 +121,11 @@ def run_cameras(conn: Connection, settings: Settings) -> None:
             DETECTION_WARMING.clear()
 
     threading.Thread(target=warm, name="warm-up", daemon=True).start()
-    link = _Link(conn)
+    link = Link(conn)
     db = Database(settings.database, migrate=False)  # The server has migrated it.
     snapshots = SnapshotStore(settings.snapshots_dir)
     clips = ClipStore(settings.clips_dir)
-    sender = _FrameSender(link)
+    sender = FrameSender(link, LivePipeWriter(live_conn) if live_conn is not None else None)
     workers: dict[int, CameraWorker] = {}
 
     def remove(camera_id: int) -> None:
@@ -229,7 +161,7 @@ def run_cameras(conn: Connection, settings: Settings) -> None:
                 elif op == "update":
                     worker_or_none.update(**args[1])
                 elif op == "watch":
-                    sender.watch(args[0], args[1], args[2])
+                    sender.watch(*args)
     finally:
         for worker in workers.values():
             worker.request_stop()
@@ -315,7 +247,8 @@ class RemoteCamera:
         return ("start", self.row, self.generation, recovering)
 
     def watch_command(self) -> tuple[Any, ...]:
-        return ("watch", self.camera_id, self.generation, dict(self.hub.watching))
+        hub = self.hub
+        return ("watch", self.camera_id, self.generation, dict(hub.watching), hub.live_width)
 
     def _send_watching(self, _: dict[Kind, int]) -> None:
         self.process.send(self.watch_command())
@@ -334,12 +267,23 @@ class RemoteCamera:
 
 
 class CameraProcess:
-    """One camera process, from the server: starts it, sends commands, hears it, restarts it."""
+    """One camera process, from the server: starts it, sends commands, hears it, restarts it.
 
-    def __init__(self, index: int, settings: Settings, bus: EventBus) -> None:
+    ``loop``: the server's event loop, which reads the process's live pipe (/ws/live
+    messages) and serves their clients; without one, a thread reads it."""
+
+    def __init__(
+        self,
+        index: int,
+        settings: Settings,
+        bus: EventBus,
+        loop: asyncio.AbstractEventLoop | None = None,
+    ) -> None:
         self.index = index
         self.settings = settings
         self.bus = bus
+        self.loop = loop
+        self._live: LivePipeReader | None = None
         self.cameras: dict[int, RemoteCamera] = {}
         self._lock = threading.Lock()
         self._stopping = threading.Event()
@@ -349,14 +293,17 @@ class CameraProcess:
     def start(self) -> None:
         context = multiprocessing.get_context("spawn")  # No fork of a threaded server.
         ours, theirs = context.Pipe()
+        live_ours, live_theirs = context.Pipe(duplex=False)
         process = context.Process(
             target=run_cameras,
-            args=(theirs, self.settings),
+            args=(theirs, self.settings, live_theirs),
             name=f"vigil-cameras-{self.index}",
             daemon=True,
         )
         process.start()
         theirs.close()
+        live_theirs.close()
+        self._live = LivePipeReader(live_ours, self._live_frame, self.loop)
         receiver = threading.Thread(
             target=self._receive, args=(ours, process), name=process.name, daemon=True
         )
@@ -444,6 +391,11 @@ class CameraProcess:
         if self._stopping.is_set() or process.exitcode == 0:
             return
         self._restart(_exit_reason(process.exitcode))
+
+    def _live_frame(self, camera_id: int, generation: int, message: bytes) -> None:
+        camera = self.cameras.get(camera_id)
+        if camera is not None and camera.generation == generation:
+            camera.hub.offer_live(message)
 
     def _forward(self, generation: int, message: Wire) -> None:
         camera = self.cameras.get(message.get("camera_id", -1))

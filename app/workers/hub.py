@@ -25,9 +25,12 @@ from app.vision.annotate import Annotator, overlay_mask
 from app.vision.detections import Detection
 from app.vision.histogram import GreyStats, grey_histogram, grey_stats, render_histogram
 from app.vision.types import GrayImage, Image, Mask
+from app.workers.live_frames import live_message
 
-Kind = Literal["picture", "histogram"]
-"""What a viewer watches: the (annotated) picture, or the grey-level histogram."""
+Kind = Literal["picture", "histogram", "live"]
+"""What a viewer watches: the (annotated) picture, the grey-level histogram, or live frames
+(``/ws/live``: the camera's picture as it is, with what was found as data,
+``app.workers.live_frames``)."""
 
 HISTOGRAM_WIDTH = 320
 """A histogram needs no more pixels than this (a JPEG is decoded at reduced scale)."""
@@ -59,9 +62,11 @@ class LiveFrame:
     _lock: threading.Lock = field(default_factory=threading.Lock, repr=False)
     _jpeg: bytes | None = None
     _histogram: bytes | None = None
+    _live: tuple[int, int, bytes] | None = None
+    """The /ws/live message made, with the camera id and width it was made for."""
 
     def has(self, kind: Kind) -> bool:
-        return True  # Drawn on demand, either kind.
+        return True  # Made on demand, any kind.
 
     def annotated(self) -> Image:
         picture = self.source.image()
@@ -76,6 +81,9 @@ class LiveFrame:
         # whole encode. A field read is whole, and what is drawn was fixed at publish.
         if kind == "histogram":
             return self._histogram
+        if kind == "live":
+            live = self._live
+            return live[2] if live is not None else None
         jpeg = self._jpeg
         return jpeg if jpeg is not None else self._passed_on()
 
@@ -90,6 +98,25 @@ class LiveFrame:
                     if self.counter is not None:
                         self.counter.frames += 1
             return self._jpeg
+
+    def live(self, camera_id: int, width: int) -> bytes:
+        """The frame's /ws/live message (``app.workers.live_frames``), made once."""
+        with self._lock:
+            made = self._live
+            if made is None or made[:2] != (camera_id, width):
+                message = live_message(
+                    camera_id,
+                    self.seq,
+                    self.ts,
+                    self.source,
+                    self.detections,
+                    self.trails,
+                    self.mask,
+                    width,
+                    self.quality,
+                )
+                made = self._live = (camera_id, width, message)
+            return made[2]
 
     def _passed_on(self) -> bytes | None:
         """The camera's own JPEG where nothing is drawn on the frame."""
@@ -158,6 +185,8 @@ class SentFrame:
         return self.made(kind) is not None
 
     def made(self, kind: Kind) -> bytes | None:
+        if kind == "live":
+            return None  # Live messages come apart (``FrameHub.offer_live``).
         return self.picture if kind == "picture" else self.histogram
 
     def jpeg(self) -> bytes:
@@ -167,18 +196,35 @@ class SentFrame:
         return self.histogram or b""
 
 
+class LiveSink(Protocol):
+    """A /ws/live client: takes each frame's message, newest first (``app.api.routes.live``)."""
+
+    def offer(self, key: int, message: bytes) -> None:
+        """The newest message of camera ``key``; called from the thread that publishes."""
+        ...
+
+    def wake(self, resync: bool = False) -> None:
+        """Something changed besides frames; ``resync``: the camera is going away."""
+        ...
+
+
 class FrameHub:
     """Holds the newest picture; async viewers wait for one newer than what they have.
 
     Viewers register with ``watch(kind)``; ``on_watch`` hears every change of the
-    counts (a camera process sends only what is watched).
+    counts (a camera process sends only what is watched). A /ws/live client registers
+    with ``watch_live``: each frame's live message is handed to it as it comes
+    (``offer_live``), and ``live_width`` is the widest picture any such client asked for.
     """
 
     def __init__(self) -> None:
         self._lock = threading.Lock()
         self._latest: Picture | None = None
         self._waiters: set[tuple[asyncio.AbstractEventLoop, asyncio.Event]] = set()
-        self.watching: dict[Kind, int] = {"picture": 0, "histogram": 0}
+        self._sinks: dict[LiveSink, tuple[int, int]] = {}
+        """Each /ws/live client's key (its camera id) and the width it asked for."""
+        self.watching: dict[Kind, int] = {"picture": 0, "histogram": 0, "live": 0}
+        self.live_width = 0
         self.on_watch: Callable[[dict[Kind, int]], None] | None = None
         self.on_publish: Callable[[Picture], None] | None = None
         self.closed = False
@@ -202,6 +248,30 @@ class FrameHub:
         if self.on_watch is not None:
             self.on_watch(counts)
 
+    def watch_live(self, sink: LiveSink, key: int, width: int) -> None:
+        """``sink`` gets every frame's live message from now on (again: with a new width)."""
+        with self._lock:
+            added = sink not in self._sinks
+            self._sinks[sink] = (key, width)
+            changed = self._set_live_width()
+        if added:
+            self._count("live", 1)
+        elif changed and self.on_watch is not None:
+            self.on_watch(dict(self.watching))
+
+    def unwatch_live(self, sink: LiveSink) -> None:
+        with self._lock:
+            if self._sinks.pop(sink, None) is None:
+                return
+            self._set_live_width()
+        self._count("live", -1)
+
+    def _set_live_width(self) -> bool:
+        """The widest picture a client asked for (under the lock); whether it changed."""
+        width = max((w for _, w in self._sinks.values()), default=0)
+        changed, self.live_width = width != self.live_width, width
+        return changed
+
     @property
     def latest(self) -> Picture | None:
         return self._latest
@@ -216,14 +286,25 @@ class FrameHub:
             with contextlib.suppress(RuntimeError):
                 loop.call_soon_threadsafe(event.set)
 
+    def offer_live(self, message: bytes) -> None:
+        """A frame's /ws/live message, for every live client (it is not ``latest``: the
+        MJPEG viewers' frames come apart, and must not be taken for this)."""
+        with self._lock:
+            sinks = list(self._sinks.items())
+        for sink, (key, _) in sinks:
+            sink.offer(key, message)
+
     def close(self) -> None:
         """Wake every waiting viewer with None (the camera is going away)."""
         with self._lock:
             self.closed = True
             waiters = list(self._waiters)
+            sinks = list(self._sinks)
         for loop, event in waiters:
             with contextlib.suppress(RuntimeError):
                 loop.call_soon_threadsafe(event.set)
+        for sink in sinks:
+            sink.wake(resync=True)
 
     async def next(self, after_seq: int, timeout: float, kind: Kind = "picture") -> Picture | None:
         """A frame newer than ``after_seq`` with a ``kind`` picture, or None after ``timeout``."""

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import asyncio
 import threading
 import time
 from collections.abc import Iterable
@@ -13,9 +14,13 @@ from app.workers.camera_host import CameraProcess, RemoteCamera, default_process
 
 
 class CameraManager:
-    def __init__(self, settings: Settings, bus: EventBus) -> None:
+    """``loop``: the server's event loop, which reads the camera processes' live frames."""
+
+    def __init__(
+        self, settings: Settings, bus: EventBus, loop: asyncio.AbstractEventLoop | None = None
+    ) -> None:
         count = settings.camera_processes or default_processes()
-        self._processes = [CameraProcess(i, settings, bus) for i in range(count)]
+        self._processes = [CameraProcess(i, settings, bus, loop) for i in range(count)]
         self._cameras: dict[int, RemoteCamera] = {}
         self._lock = threading.Lock()
         self._changing = threading.RLock()

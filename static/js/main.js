@@ -1,12 +1,14 @@
 /* Vigil's dashboard: native ES modules, no build step. Makes each part of the page, wires
    them together and to /ws, then starts. The parts talk to /api/* themselves. */
 import { Cameras } from "./api/cameras.js";
+import { LiveFrames } from "./api/live-frames.js";
 import { ServerSocket } from "./api/socket.js";
 import { snapshotDeleted, snapshotIdOf, snapshotUrl } from "./api/snapshots.js";
 import { CameraFilter } from "./components/camera-filter.js";
 import { MqttBadge } from "./components/mqtt-badge.js";
 import { AlarmSound } from "./components/sound.js";
 import { Toasts } from "./components/toasts.js";
+import { Wall } from "./components/wall.js";
 import { $ } from "./lib/dom.js";
 import { AlarmList, alarmToastHtml } from "./views/alarm-list.js";
 import { Analyses } from "./views/analyses.js";
@@ -17,7 +19,6 @@ import { Notifications } from "./views/notifications.js";
 
 const CAMERA_LISTING_MS = 15000;  // Cameras added or deleted elsewhere show without /ws.
 const CHART_MS = 1000;
-const STALL_CHECK_MS = 2000;
 
 /* The sticky header's height, for the sections' scroll-margin-top: a nav link brings its
    section's heading just below the header, not under it (it wraps on narrow screens). */
@@ -28,17 +29,16 @@ new ResizeObserver(() => {
 const toasts = new Toasts($("#toasts"), $("#toasts-more"));
 const sound = new AlarmSound($("#mute"));
 const cameras = new Cameras();
+const liveFrames = new LiveFrames();
 const mqttBadge = new MqttBadge($("#mqtt-state"));
 const cameraFilter = new CameraFilter($("#gallery-filter select[name=camera_id]"), cameras);
 const eventsFilter = new CameraFilter($("#events-filter select[name=camera_id]"), cameras);
 const socket = new ServerSocket($("#ws-state"), {
   opened(reconnected) {
     grid.updateAll();
-    // Streams that were open when the server went away ended without an error event:
-    // open every picture again (a restarted server may also have other cameras).
+    // A restarted server may have other cameras (/ws/live reconnects by itself).
     if (reconnected) {
       mqttBadge.refresh();
-      grid.restartPictures();
       grid.load();
       gallery.load("shown");
       alarms.loadRecent();
@@ -64,22 +64,22 @@ const grid = new CameraGrid({
   addForm: $("#add-camera"),
   cameras,
   connection: socket,
+  liveFrames,
   toasts,
-  analysisStreams: () => analyses.streamCount(),
   listed: () => {
     cameraFilter.render();
     eventsFilter.render();
     notifications.camerasChanged();
+    wall.layout();
   },
 });
+const wall = new Wall($("#wall"), $("#grid"));
 const alarms = new AlarmList($("#alarm-list"), $("#clear-alarms"), {
   cameraName: (id) => cameras.name(id),
   noteCamera: (id) => cameraFilter.note(id),
   camerasNoted: () => cameraFilter.render(),
 });
-const analyses = new Analyses($("#analyses"), $("#upload"), {
-  streamsChanged: () => grid.assignPictureModes(),
-});
+const analyses = new Analyses($("#analyses"), $("#upload"));
 const events = new EventsView($("#events"), { cameras, toasts });
 const notifications = new Notifications($("#notifications"), cameras);
 const gallery = new Gallery($("#gallery"), {
@@ -138,14 +138,10 @@ document.addEventListener("error", async (event) => {
   if (id && await snapshotDeleted(url)) onSnapshotsDeleted([id]);  // As /ws would tell.
 }, true);  // An error event does not bubble: caught on its way down.
 
-/* A tab in the background keeps its connections: a forgotten one with its streams open
-   leaves too few for a new tab of the dashboard, whose requests would then wait for
-   ever. A hidden page closes its streams (polled pictures already wait while it is
-   hidden) and opens them again when shown. */
-document.addEventListener("visibilitychange", () => {
-  grid.restartStreams();
-  analyses.showStreams();
-});
+/* A tab in the background keeps its connections: a forgotten one with an analysis's
+   stream open leaves fewer for a new tab of the dashboard. A hidden page closes it and
+   opens it again when shown (and watches no camera on /ws/live: LiveFrames). */
+document.addEventListener("visibilitychange", () => analyses.showStreams());
 
 grid.load().then(() => {
   gallery.load("fresh");
@@ -156,6 +152,6 @@ analyses.load();
 mqttBadge.start();
 notifications.load();
 socket.connect();
+liveFrames.connect();
 setInterval(() => { if (socket.state !== "down") grid.load(); }, CAMERA_LISTING_MS);
 setInterval(() => grid.drawCharts(Date.now() / 1000), CHART_MS);
-setInterval(() => grid.watchStreams(), STALL_CHECK_MS);

@@ -26,7 +26,13 @@ from websockets.exceptions import ConnectionClosed, InvalidStatus
 from websockets.sync.client import connect
 
 from app.api.security import Access, PasswordHash
-from tests.api.vigil_livekit import ROOT, Running, read_mjpeg_frames, serve_process
+from tests.api.vigil_livekit import (
+    ROOT,
+    Running,
+    read_mjpeg_frames,
+    serve_process,
+    wait_for_pictures,
+)
 
 PASSWORD = "correct horse"
 
@@ -443,10 +449,7 @@ def test_login_and_dashboard_in_chromium_under_the_policy(
     page.wait_for_url(server.base + "/")
 
     # The whole dashboard works under the policy: pictures, live socket, chart, alarm, gallery.
-    page.wait_for_function(
-        "() => [...document.querySelectorAll('.card img.live')].some(i => i.naturalWidth > 0)",
-        timeout=20000,
-    )
+    wait_for_pictures(page, 1, timeout_ms=20000, at_least=True)
     page.wait_for_selector("#ws-state.badge-live", timeout=10000)
     page.wait_for_selector(".card .motion canvas", timeout=10000)
     page.locator(".card button.toggle").first.click()

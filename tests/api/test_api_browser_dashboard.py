@@ -9,7 +9,6 @@ from __future__ import annotations
 
 import re
 import time
-from collections import Counter
 from collections.abc import Callable
 from pathlib import Path
 from typing import Any
@@ -25,11 +24,9 @@ from tests.api.vigil_livekit import (
     hold_answers,
     live_settings,
     running_server,
-    set_hidden,
     show_cameras,
     wait_for,
     wait_for_pictures,
-    watch_analysis_live,
 )
 
 pytestmark = pytest.mark.browser
@@ -38,7 +35,8 @@ LISTING = re.compile(r"/api/cameras$")
 """The camera listing's URL, whose answers the tests hold back."""
 
 PICTURE_HASHES = """(selector) => [...document.querySelectorAll(selector)].map((img) => {
-  if (!img.naturalWidth) return null;  // no frame (yet): blank, loading or broken
+  // No frame (yet): blank, loading or broken.
+  if (img.tagName === 'CANVAS' ? !Number(img.dataset.drawn) : !img.naturalWidth) return null;
   const canvas = document.createElement('canvas');
   canvas.width = 64; canvas.height = 48;
   const context = canvas.getContext('2d');
@@ -50,7 +48,9 @@ PICTURE_HASHES = """(selector) => [...document.querySelectorAll(selector)].map((
 })"""
 
 
-def pictures_move(page: Any, selector: str = ".card img.live", seconds: float = 4.0) -> list[bool]:
+def pictures_move(
+    page: Any, selector: str = ".card canvas.live", seconds: float = 4.0
+) -> list[bool]:
     """Whether each picture showed more than one frame in ``seconds`` (a blank or broken
     picture is no frame: going from blank to one frame is no movement)."""
     seen: list[set[int]] = []
@@ -238,9 +238,7 @@ def test_dashboard_fits_a_phone(
     add_camera(server.base, f"file://{motion_video}", name="lane")
     page.set_viewport_size({"width": 390, "height": 844})
     page.goto(server.base + "/")
-    page.wait_for_function(
-        "() => document.querySelector('.card img.live')?.naturalWidth > 0", timeout=20000
-    )
+    wait_for_pictures(page, 1, timeout_ms=20000)
     page.wait_for_timeout(1500)  # The motion chart is drawn.
     sizes = page.evaluate(
         "({ scroll: document.documentElement.scrollWidth,"
@@ -362,60 +360,43 @@ def test_clear_list_holds_across_reloads_with_the_browser_clock_an_hour_off(
     assert shown_events() == [str(second)], "a new event hidden"
 
 
-def test_many_cameras_stream_what_connections_allow_and_poll_the_rest_at_their_rate(
+def test_only_the_cameras_on_screen_are_watched_and_at_their_rate(
     serve: Callable[..., Running], page: Any, motion_video: Path
 ) -> None:
     server = serve()
-    show_cameras(server, page, f"file://{motion_video}", 6)
-    sources = page.locator(".card img.live").evaluate_all("imgs => imgs.map(i => i.src)")
-    assert ["stream.mjpg" in s for s in sources] == [True] * 4 + [False] * 2, sources
-    polled: Counter[str] = Counter()
+    page.set_viewport_size({"width": 1280, "height": 800})  # Two cards a row, two rows seen.
+    ids = show_cameras(server, page, f"file://{motion_video}", 6)
+    hubs = {cam: server.server.config.app.state.services.cameras.get(cam).hub for cam in ids}
 
-    def count(response: Any) -> None:
-        if "/frame.jpg" in response.url and response.status == 200:
-            polled[response.url.split("/")[5]] += 1
+    def on_screen() -> set[int]:
+        return set(
+            page.evaluate(
+                "[...document.querySelectorAll('.card')].filter(card => {"
+                " const box = card.querySelector('.picture').getBoundingClientRect();"
+                " return box.bottom > 0 && box.top < innerHeight; }).map(c => Number(c.dataset.id))"
+            )
+        )
 
-    page.on("response", count)
-    page.wait_for_timeout(5000)
-    page.remove_listener("response", count)
-    rates = {camera: n / 5 for camera, n in polled.items()}
-    # The clip is 15 fps: a polled card asks again as soon as a picture loads (it was
-    # every 250 ms plus the round trip, under 4 a second).
-    assert len(rates) == 2 and all(rate >= 6 for rate in rates.values()), rates
-    assert "shown/s" in page.locator(".card.polled .fps").first.inner_text()
-
-
-def test_a_camera_that_becomes_polled_while_the_page_is_hidden_asks_nothing_till_shown(
-    serve: Callable[..., Running], page: Any, motion_video: Path
-) -> None:
-    server = serve()
-    ids = show_cameras(server, page, f"file://{motion_video}", 4)
-    last = page.locator(f'.card[data-id="{ids[3]}"] img.live')
-    stream = f"/api/cameras/{ids[3]}/stream.mjpg"
-    assert stream in (last.get_attribute("src") or "")
-    hub = server.server.config.app.state.services.cameras.get(ids[3]).hub
-    assert hub.watching["picture"] >= 1
-    # The tab goes to the background: its streams close (the server sees the viewer go:
-    # it checks every second). Meanwhile an analysis is watched live: its stream takes a
-    # connection, so the last camera's picture becomes polled, and asks for no frame
-    # while the page is hidden.
-    set_hidden(page, True)
-    wait_for(lambda: hub.watching["picture"] == 0, 5, "the stream to close")
-    asked: list[str] = []
-    page.on("request", lambda r: asked.append(r.url) if f"/cameras/{ids[3]}/" in r.url else None)
-    watch_analysis_live(server, page)
-    page.wait_for_timeout(1500)
-    assert asked == [] and last.get_attribute("src") is None
-    # Back in view: the other three stream again, and the last camera shows polled frames.
-    set_hidden(page, False)
-    page.wait_for_function(
-        f"() => {{ const i = document.querySelector('.card[data-id=\"{ids[3]}\"] img.live');"
-        " return i.src.includes('/frame.jpg') && i.naturalWidth > 0"
-        " && !i.classList.contains('broken'); }",
-        timeout=10000,
-    )
-    assert page.locator(".card:not(.polled) img.live[src*='stream.mjpg']").count() == 3
-    assert not any("stream.mjpg" in url for url in asked)
+    for scrolled in ("window.scrollTo(0, 0)", "window.scrollTo(0, document.body.scrollHeight)"):
+        page.evaluate(scrolled)
+        shown = on_screen()
+        assert 0 < len(shown) < len(ids), shown
+        wait_for(
+            lambda shown=shown: all(
+                hub.watching["live"] == (1 if cam in shown else 0) for cam, hub in hubs.items()
+            ),
+            5,
+            f"cameras {sorted(shown)} watched, and only those",
+        )
+    # Those shown are drawn at their camera's rate (the clip's 15 fps).
+    drawn = "c => Number(c.dataset.drawn)"
+    cam = sorted(shown)[-1]
+    canvas = page.locator(f'.card[data-id="{cam}"] canvas.live')
+    before = canvas.evaluate(drawn)
+    page.wait_for_timeout(4000)
+    rate = (canvas.evaluate(drawn) - before) / 4
+    assert rate >= 10, f"{rate:.1f} frames a second drawn"
+    assert "shown/s" in page.locator(f'.card[data-id="{cam}"] .fps').inner_text()
 
 
 def test_a_camera_that_goes_away_asks_for_no_pictures_meanwhile(
@@ -426,8 +407,9 @@ def test_a_camera_that_goes_away_asks_for_no_pictures_meanwhile(
         server = serve()
         cam = add_camera(server.base, camera.url, name="door")
         page.goto(server.base + "/")
+        wait_for_pictures(page, 1, timeout_ms=20000)
         page.wait_for_function(
-            "() => document.querySelector('.card img.live')?.naturalWidth > 0", timeout=20000
+            "() => document.querySelector('.card img.histogram').naturalWidth > 0", timeout=10000
         )
         camera.stop()
         card = page.locator(f'.card[data-id="{cam}"]')
@@ -444,7 +426,8 @@ def test_a_camera_that_goes_away_asks_for_no_pictures_meanwhile(
         # never counts a `visibility: hidden` element as visible, so ask for the class.)
         broken = card.locator("img.broken").evaluate_all("imgs => imgs.map(i => i.className)")
         assert broken == [], "pictures blanked by failed requests"
-        assert card.locator("img.live").is_visible() and card.locator("img.histogram").is_visible()
+        assert card.locator("canvas.live").is_visible()
+        assert card.locator("img.histogram").is_visible()
         assert card.locator("img.histogram").evaluate("i => i.naturalWidth") > 0
         # It asked for a histogram every second, each a 503 in the console.
         assert refused == []

@@ -120,22 +120,40 @@ def hold_answers(page: Any, url: Any, method: str = "GET") -> list[tuple[Any, An
     return held
 
 
+PICTURES_SHOWN = (
+    "[...document.querySelectorAll('.card canvas.live')].filter(c => Number(c.dataset.drawn) > 0)"
+)
+"""The camera cards whose live picture has drawn a frame (from /ws/live)."""
+
+
 def wait_for_pictures(
     page: Any, count: int, timeout_ms: int = 30000, at_least: bool = False
 ) -> None:
     """Until ``count`` camera pictures (``at_least``: that many or more) show a frame."""
-    shown = "[...document.querySelectorAll('.card img.live')].filter(i => i.naturalWidth > 0)"
     page.wait_for_function(
-        f"() => {shown}.length {'>=' if at_least else '==='} {count}", timeout=timeout_ms
+        f"() => {PICTURES_SHOWN}.length {'>=' if at_least else '==='} {count}", timeout=timeout_ms
+    )
+
+
+def wait_for_picture(page: Any, camera_id: int, timeout_ms: int = 20000) -> None:
+    """Until camera ``camera_id``'s card shows a frame."""
+    page.wait_for_function(
+        f"() => Number(document.querySelector('.card[data-id=\"{camera_id}\"] canvas.live')"
+        "?.dataset.drawn) > 0",
+        timeout=timeout_ms,
     )
 
 
 def show_cameras(server: Running, page: Any, source: str, count: int) -> list[int]:
     """``count`` cameras of ``source`` (cam0, cam1, ...) shown on a freshly opened page,
-    each with a picture; their ids."""
+    each with a picture (only cards on screen get frames: each is scrolled into view in
+    turn, then the page goes back to the top); their ids."""
     ids = [add_camera(server.base, source, name=f"cam{i}") for i in range(count)]
     page.goto(server.base + "/")
-    wait_for_pictures(page, count, timeout_ms=30000)
+    for camera_id in ids:
+        page.locator(f'.card[data-id="{camera_id}"] .picture').scroll_into_view_if_needed()
+        wait_for_picture(page, camera_id, timeout_ms=30000)
+    page.evaluate("window.scrollTo(0, 0)")
     return ids
 
 

@@ -18,9 +18,9 @@ from app.workers.camera_host import (
     CameraProcess,
     RemoteCamera,
     _end_events,
-    _Link,
     _WorkerLink,
 )
+from app.workers.frame_sender import Link
 from tests.api.vigil_livekit import FPS, frame_at
 from tests.workers.conftest import make_worker
 
@@ -71,7 +71,7 @@ def test_events_a_dead_process_left_open_end_with_a_motion_end_over_the_pipe(
     camera_id = db.add_camera("cam", "demo", DEFAULT_METHOD, 100.0)
     event_id = db.add_event(camera_id, 1000.0, [[1, 2, 3, 4]], 12.0, [1])
     sent: list[tuple[Any, ...]] = []
-    link = _WorkerLink(cast(_Link, SimpleNamespace(send=sent.append)), 5)
+    link = _WorkerLink(cast(Link, SimpleNamespace(send=sent.append)), 5)
     _end_events(db, link, camera_id)
     ((kind, generation, wire),) = sent
     assert (kind, generation) == ("message", 5) and type(wire) is dict
@@ -94,7 +94,7 @@ def test_a_clip_a_dead_process_was_recording_is_finished_and_named_in_its_motion
         for i in range(int(2 * FPS) + 3):
             writer.write(ClipFrame(i / FPS, 0.0, (320, 240), jpeg=JPEG), i / FPS)
     sent: list[tuple[Any, ...]] = []
-    link = _WorkerLink(cast(_Link, SimpleNamespace(send=sent.append)), 5)
+    link = _WorkerLink(cast(Link, SimpleNamespace(send=sent.append)), 5)
     _end_events(db, link, camera_id, clips)
     ((_, _, wire),) = sent
     assert wire["clip"] == f"/api/events/{event_id}/clip.mp4"

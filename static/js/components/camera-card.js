@@ -10,8 +10,8 @@ import { ZoneEditor } from "./zone-editor.js";
 const SLIDER_DELAY_MS = 150;  // A slider dragged sends its last value, not every step.
 
 export class CameraCard {
-  /* context: cameras (the store), connection (the /ws state), toasts, alarmTimes(id),
-     reload() (the camera listing, after a delete). */
+  /* context: cameras (the store), connection (the /ws state), liveFrames (/ws/live),
+     toasts, alarmTimes(id), reload() (the camera listing, after a delete). */
   constructor(id, template, context) {
     this.id = id;
     this.cameras = context.cameras;
@@ -21,13 +21,20 @@ export class CameraCard {
     this.removed = false;
     const card = template.content.firstElementChild.cloneNode(true);
     card.dataset.id = id;
+    card.classList.add("no-picture");
     this.element = card;
-    this.pictures = new CameraPictures(card, id, this.cameras, this.connection);
+    this.pictures = new CameraPictures(card, id, {
+      cameras: this.cameras,
+      connection: this.connection,
+      liveFrames: context.liveFrames,
+      onSize: () => this.zones.place(),
+    });
     this.chart = new MotionChart($(".motion", card), () => context.alarmTimes(id));
     this.wireSettings();
     this.zones = new ZoneEditor(card, {
       savedMask: () => this.cameras.get(id)?.mask,
       save: (mask) => this.patch({ mask }),
+      frameSize: () => this.pictures.live.size,
     });
     this.editForm = new CameraEditForm(card, {
       camera: () => this.cameras.get(id) || {},
@@ -128,10 +135,9 @@ export class CameraCard {
     toggle.classList.toggle("active", Boolean(camera.active));
     card.classList.toggle("watching", Boolean(camera.active));
     this.showSettings(camera);
-    // Pictures start once the camera has been live (a stream from a dead source would
-    // hold a connection with nothing to show); they carry on across reconnects.
+    // The histogram is polled once the camera has been live; it carries on across
+    // reconnects. (The live picture comes over /ws/live whenever the card is on screen.)
     if (!this.pictures.started && camera.state === "live") this.pictures.start();
-    card.classList.toggle("no-picture", !this.pictures.started);
   }
 
   /* The settings, but not in a field the user is changing. */
@@ -160,7 +166,7 @@ export class CameraCard {
 
   remove() {
     this.removed = true;
-    this.pictures.stop();
+    this.pictures.remove();
     this.element.remove();
   }
 }

@@ -1,5 +1,5 @@
 /* A camera's ignore zones: polygons of [x, y] fractions of the frame (the API's `mask`),
-   drawn in an SVG laid exactly over the picture as `object-fit: contain` shows it. The
+   drawn in an SVG laid exactly over the picture as the live picture letterboxes it. The
    user clicks corners on the picture to outline an area, then saves all areas at once. */
 import { $ } from "../lib/dom.js";
 
@@ -14,11 +14,12 @@ function svgElement(name, attributes) {
 const pointsText = (points) => points.map(([x, y]) => `${x},${y}`).join(" ");
 
 export class ZoneEditor {
-  /* savedMask(): the camera's mask in force; save(mask) stores a new one (null: none). */
-  constructor(card, { savedMask, save }) {
+  /* savedMask(): the camera's mask in force; save(mask) stores a new one (null: none);
+     frameSize(): the picture's [width, height], null before its first frame. */
+  constructor(card, { savedMask, save, frameSize }) {
     this.card = card;
     this.picture = $(".picture", card);
-    this.img = $(".live", card);
+    this.frameSize = frameSize;
     this.tools = $(".zone-tools", card);
     this.savedMask = savedMask;
     this.layer = svgElement("svg", { class: "zone-layer", viewBox: "0 0 1 1", preserveAspectRatio: "none" });
@@ -27,7 +28,6 @@ export class ZoneEditor {
     this.draft = [];         // the corners of the area being outlined
     this.editing = false;    // while someone draws, the saved mask is not drawn over it
     this.shownMask = null;   // the mask last drawn, as text: status messages repeat it every second
-    this.img.addEventListener("load", () => this.place());
     new ResizeObserver(() => this.draw()).observe(this.picture);  // Gone with the card, unlike a window listener.
     this.layer.addEventListener("click", (event) => this.addCorner(event));
     $(".zones", card).addEventListener("click", () => {
@@ -82,14 +82,15 @@ export class ZoneEditor {
     this.draw();
   }
 
-  /* The layer over the picture's frame, not the letterbox around it. */
+  /* The layer over the picture's frame, not the letterbox around it (called again when
+     the frame's size changes). */
   place() {
-    const img = this.img;
-    if (!img.naturalWidth) return;
+    const size = this.frameSize();
+    if (!size) return;
     const box = this.picture.getBoundingClientRect();
-    const scale = Math.min(box.width / img.naturalWidth, box.height / img.naturalHeight);
-    const width = img.naturalWidth * scale;
-    const height = img.naturalHeight * scale;
+    const scale = Math.min(box.width / size[0], box.height / size[1]);
+    const width = size[0] * scale;
+    const height = size[1] * scale;
     Object.assign(this.layer.style, {
       left: `${(box.width - width) / 2}px`,
       top: `${(box.height - height) / 2}px`,

@@ -96,10 +96,8 @@ class AnalysisPanel {
 }
 
 export class Analyses {
-  /* streamsChanged(): a live stream opened or closed (see streamCount). */
-  constructor(container, form, { streamsChanged }) {
+  constructor(container, form) {
     this.container = container;
-    this.streamsChanged = streamsChanged;
     this.panels = new Map();   // id -> AnalysisPanel
     this.uploads = new Set();  // the uploads under way (XMLHttpRequest)
     form.addEventListener("submit", (event) => {
@@ -128,29 +126,20 @@ export class Analyses {
     if (!panel.id.startsWith("upload-")) rememberDismissed(panel.id);
     this.panels.delete(panel.id);
     panel.element.remove();
-    this.streamsChanged();
   }
 
   setStatus(panel, status) {
     panel.setStatus(status);
-    // A live stream holds a connection: one camera fewer streams meanwhile.
-    if (status === "running" && panel.addLiveStream()) {
-      this.showStreams();
-      this.streamsChanged();
-    }
+    if (status === "running" && panel.addLiveStream()) this.showStreams();
   }
 
   /* The streams of the analyses watched live: open while the page is shown, closed while
-     it is hidden (each still counts in streamCount: it comes back when shown). */
+     it is hidden (each comes back when shown). */
   showStreams() {
     for (const img of $$(".live-view img.streaming", this.container)) {
       if (document.hidden) img.removeAttribute("src");
       else if (!img.getAttribute("src")) img.src = img.dataset.stream;
     }
-  }
-
-  streamCount() {
-    return $$(".live-view img.streaming", this.container).length;
   }
 
   upload(form) {
@@ -234,7 +223,6 @@ export class Analyses {
       panel.showResult(analysis);
     }
     if (analysis.status === "failed") panel.part(".live-view").innerHTML = "";
-    if (analysis.status === "done" || analysis.status === "failed") this.streamsChanged();
   }
 
   async load() {

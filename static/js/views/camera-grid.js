@@ -1,30 +1,24 @@
-/* The Cameras section: a card per camera, in the order they came, the form that adds one,
-   and which cards' pictures are streams. */
+/* The Cameras section: a card per camera, in the order they came, and the form that adds
+   one. Every card's picture comes over the page's one /ws/live socket (liveFrames). */
 import { $, escapeHtml } from "../lib/dom.js";
 import { CameraCard } from "../components/camera-card.js";
 
-/* Browsers keep about six HTTP/1.1 connections per host. An MJPEG stream holds one for
-   as long as it is shown, so at most STREAM_BUDGET pictures are streams (the first cards,
-   less the analyses being watched live) and two connections stay free for API calls,
-   histograms and the pictures of the other cameras, which are polled as single frames. */
-const STREAM_BUDGET = 4;
 const ALARMS_MARKED = 50;  // The latest alarms of a camera drawn on its motion chart.
 
 export class CameraGrid {
-  /* analysisStreams(): how many analyses are watched live; listed(): after each listing. */
-  constructor({ grid, template, addForm, cameras, connection, toasts, analysisStreams, listed }) {
+  /* listed(): after each listing. */
+  constructor({ grid, template, addForm, cameras, connection, liveFrames, toasts, listed }) {
     this.grid = grid;
     this.template = template;
     this.cameras = cameras;
     this.toasts = toasts;
-    this.analysisStreams = analysisStreams;
     this.listed = listed;
     this.cards = new Map();       // id -> CameraCard
     // id -> the times of its latest alarms: here, not on the card, as an alarm may come
     // before its camera's card (a camera added elsewhere, not listed yet).
     this.alarmTimes = new Map();
     this.cardContext = {
-      cameras, connection, toasts,
+      cameras, connection, liveFrames, toasts,
       alarmTimes: (id) => this.alarmTimes.get(id) || [],
       reload: () => this.load(),
     };
@@ -69,14 +63,7 @@ export class CameraGrid {
         this.grid.append(card.element);
       }
     }
-    this.assignPictureModes();
     for (const camera of this.cameras.values()) this.cards.get(camera.id).update();
-  }
-
-  /* Which pictures are streams: the first cards, as many as the connection budget allows. */
-  assignPictureModes() {
-    const slots = Math.max(0, STREAM_BUDGET - this.analysisStreams());
-    Array.from(this.cards.values()).forEach((card, i) => card.pictures.setMode(i < slots ? "stream" : "poll"));
   }
 
   /* A camera's /ws status message. */
@@ -111,22 +98,7 @@ export class CameraGrid {
     for (const card of this.cards.values()) card.update();
   }
 
-  /* Every picture opened again: the server is back, and the streams ended with it. */
-  restartPictures() {
-    for (const card of this.cards.values()) card.pictures.restart();
-  }
-
-  /* The streams, closed while the page is hidden and opened when it is shown again. */
-  restartStreams() {
-    for (const card of this.cards.values()) if (card.pictures.mode !== "poll") card.pictures.restart();
-  }
-
   drawCharts(now) {
     for (const card of this.cards.values()) card.chart.draw(now);
-  }
-
-  watchStreams() {
-    const now = Date.now();
-    for (const card of this.cards.values()) card.pictures.checkStall(now);
   }
 }

@@ -161,3 +161,41 @@ def test_the_mask_is_tinted_and_the_zones_laid_exactly_over_the_picture(
         reddish += r > 200 and g < 160 and b < 160
         assert shown["layer"] == pytest.approx(shown["picture"], abs=1.5), "zones misplaced"
     assert seen >= 5 and reddish >= 0.6 * seen, f"{reddish} of {seen} tinted red"
+
+
+# Headless Chromium keeps every tab visible (minimising its window or bringing another
+# tab to the front changes nothing), so the tab is hidden as the browser would say so.
+SET_HIDDEN = """hidden => {
+  Object.defineProperty(document, 'hidden', { configurable: true, get: () => hidden });
+  Object.defineProperty(document, 'visibilityState', {
+    configurable: true, get: () => (hidden ? 'hidden' : 'visible') });
+  document.dispatchEvent(new Event('visibilitychange'));
+}"""
+
+
+def test_a_hidden_tab_receives_no_frames_and_a_shown_one_gets_them_again(
+    serve: Callable[..., Running], page: Any, motion_video: Path
+) -> None:
+    server = serve()
+    add_camera(server.base, f"file://{motion_video}", activate=True)
+    received: list[float] = []
+
+    def on_socket(socket: Any) -> None:
+        if socket.url.endswith("/ws/live"):
+            socket.on("framereceived", lambda _payload: received.append(time.monotonic()))
+
+    page.on("websocket", on_socket)
+    page.goto(server.base + "/")
+    wait_for_pictures(page, 1, timeout_ms=30000)
+
+    page.evaluate(SET_HIDDEN, True)
+    page.wait_for_timeout(1000)  # Frames already on their way may still land.
+    hidden_at = time.monotonic()
+    page.wait_for_timeout(3000)
+    assert [t for t in received if t > hidden_at] == [], "frames came to a hidden tab"
+
+    page.evaluate(SET_HIDDEN, False)
+    shown_at = time.monotonic()
+    page.wait_for_timeout(3000)
+    rate = len([t for t in received if t > shown_at]) / 3
+    assert rate >= 10, f"{rate:.1f} frames a second once the tab is shown again"

@@ -45,6 +45,8 @@ MAX_FRAMES_NAMED = 10
 """Skipped frames a warning names one by one (report.json lists them all)."""
 FrameObserver = Callable[[Image], None]
 """Called with each annotated frame (for a live view of a running analysis)."""
+READ_AHEAD = 4
+"""Frames decoded ahead by a thread while the current one is analysed (``read_ahead``)."""
 BACKGROUND_SCAN_S = 30.0
 """Seconds of video, from the start, that the background scan samples."""
 BACKGROUND_SCAN_FRAMES = 1500
@@ -282,7 +284,7 @@ class _Analysis:
         )
         frames = 0
         try:
-            for index, frame in self.source.indexed_frames():
+            for index, frame in self.source.indexed_frames(READ_AHEAD):
                 if self.first_frame is None:
                     self.first_frame = frame
                 # A skipped frame keeps its decode index: the frames after it keep their times.
@@ -313,7 +315,7 @@ class _Analysis:
         return report
 
     def _scan_background(self) -> dict[str, Any]:
-        frames = self.source.frames()
+        frames = self.source.frames(READ_AHEAD)
         try:
             return scan_background(self.pipeline, frames, self.source.fps).as_dict()
         finally:

@@ -18,6 +18,7 @@ from pathlib import Path
 
 import cv2
 
+from app.sources.read_ahead import read_ahead
 from app.vision.types import Image
 
 IMAGE_SUFFIXES = (".jpg", ".jpeg", ".png", ".bmp", ".tif", ".tiff", ".pgm", ".ppm", ".webp")
@@ -109,17 +110,20 @@ class VideoInput:
             return False
         return self.header_frames - self.frames_read > max(1, self.header_frames * HEADER_SLACK)
 
-    def frames(self) -> Generator[Image]:
-        """The frames that decode, in order (``close`` it to stop reading early)."""
-        for _, frame in self.indexed_frames():
+    def frames(self, ahead: int = 0) -> Generator[Image]:
+        """The frames that decode, in order (``close`` it to stop reading early);
+        ``ahead``: decoded up to that many frames ahead by a thread (``read_ahead``)."""
+        for _, frame in self.indexed_frames(ahead):
             yield frame
 
-    def indexed_frames(self) -> Iterator[tuple[int, Image]]:
+    def indexed_frames(self, ahead: int = 0) -> Iterator[tuple[int, Image]]:
         """(decode index, frame) for every frame that decodes; the ones that do not are
-        skipped, keep their index and are listed in ``skipped``."""
+        skipped, keep their index and are listed in ``skipped``. ``ahead``: as for
+        ``frames``."""
         self.skipped, self.frames_read = [], 0
         failed: list[int] = []
-        for index, frame in self._images() if self.images is not None else self._video():
+        decoded = self._images() if self.images is not None else self._video()
+        for index, frame in read_ahead(decoded, ahead) if ahead else decoded:
             if frame is None:
                 failed.append(index)
                 continue

@@ -125,6 +125,7 @@ class Server:
             "VIGIL_DEMO_CAMERA": "false",
             "VIGIL_CAMERA_PROCESSES": str(processes),
             "VIGIL_STATUS_INTERVAL_S": str(STATUS_INTERVAL_S),
+            "VIGIL_CLIPS": "false",  # As the in-process rows (Mode.clips).
             **(extra_env or {}),
         }
         command = [sys.executable, "-m", "app", "serve", "--port", str(self.port)]

@@ -104,12 +104,16 @@ class Mode:
     socket; in the server: a ``stream.mjpg`` client) or ``live`` (a /ws/live client)."""
     served: bool = False
     """In a real ``vigil serve`` (``_served.py``) rather than a bare worker process."""
+    clips: bool = False
+    """Whether events are recorded as clips (``VIGIL_CLIPS``). Off but in one row: Motion,
+    beside it, writes no movies, and the capacity targets predate clips."""
 
     @property
     def label(self) -> str:
         state = "activated" if self.activated else "idle"
         method = "" if self.method == DEFAULT_METHOD else f", {self.method}"
         where = "vigil serve: " if self.served else ""
+        method += ", recording clips" if self.clips else ""
         if not self.watched:
             watched = "unwatched"
         elif self.viewer == "live":
@@ -140,7 +144,9 @@ CHEAPEST_METHOD = FrameDifference.name
 ACTIVE_CHEAPEST = Mode(activated=True, watched=False, method=CHEAPEST_METHOD)
 """Activated with the cheapest segmentation (one difference and threshold per pixel):
 about what every stage but the model costs (a noisier mask makes later stages dearer)."""
-CPU_MODES = (IDLE, ACTIVE, ACTIVE_CHEAPEST, ACTIVE_WATCHED, IDLE_WATCHED)
+ACTIVE_RECORDING = Mode(activated=True, watched=False, clips=True)
+"""Activated, each event recorded as an H.264 clip (the server's default)."""
+CPU_MODES = (IDLE, ACTIVE, ACTIVE_RECORDING, ACTIVE_CHEAPEST, ACTIVE_WATCHED, IDLE_WATCHED)
 """The rows of table (a), in the order they run."""
 
 
@@ -251,7 +257,7 @@ class LiveCameras:
 
     def __init__(self, spec: TrialSpec, data_dir: Path) -> None:
         self.spec = spec
-        self.settings = Settings(data_dir=data_dir, demo_camera=False)
+        self.settings = Settings(data_dir=data_dir, demo_camera=False, clips=spec.mode.clips)
         self.db = Database(self.settings.db_path)
         snapshots = SnapshotStore(self.settings.snapshots_dir)
         bus = EventBus()
@@ -1062,6 +1068,14 @@ def print_paced(
         ),
     )
     print_viewers(paced, served)
+    recording = [
+        f"{fmt(clip.ms, 2)} over {fmt(bare.ms, 2)} ms with OpenCV {bare.threads}"
+        for bare in paced
+        if bare.trial.mode == ACTIVE
+        for clip in paced
+        if clip.trial.mode == ACTIVE_RECORDING and clip.threads == bare.threads
+    ]
+    print(f"Recording each event as a clip (the rows above record none): {', '.join(recording)}")
     if motion is None:
         print(f"Motion: skipped, {MOTION} is absent (Debian: apt-get install motion)")
     else:

@@ -64,6 +64,7 @@ CAMERA_FIELDS = (
     "show_mask",
     "active",
     "mask",
+    "pinned_to",
 )
 FLAGS = ("show_mask", "active")
 """Camera fields kept as 0 or 1."""
@@ -77,10 +78,14 @@ class Database:
 
     ``migrate``: bring its schema up to this release's first (the server does, at start);
     otherwise wait until it is (a camera process: the server migrates before starting one).
-    ``app.storage.migrate.SchemaError`` when it cannot be.
+    ``app.storage.migrate.SchemaError`` when it cannot be. ``node``: the node this process
+    belongs to (``VIGIL_NODE_NAME``), named by the events and snapshots it adds.
     """
 
-    def __init__(self, target: engines.Target, *, migrate: bool = True) -> None:
+    def __init__(
+        self, target: engines.Target, *, migrate: bool = True, node: str | None = None
+    ) -> None:
+        self.node = node
         self.dialect = engines.engine_name(target)
         """``sqlite`` or ``postgresql``."""
         self.shown = engines.shown(target)
@@ -222,6 +227,7 @@ class Database:
                 boxes=json.dumps(boxes),
                 max_area=max_area,
                 track_ids=json.dumps(list(track_ids)),
+                node=self.node,
             )
         )
 
@@ -287,7 +293,13 @@ class Database:
     ) -> int:
         return self._insert(
             insert(snapshots).values(
-                camera_id=camera_id, event_id=event_id, ts=ts, kind=kind, path=path, size=size
+                camera_id=camera_id,
+                event_id=event_id,
+                ts=ts,
+                kind=kind,
+                path=path,
+                size=size,
+                node=self.node,
             )
         )
 
@@ -470,8 +482,12 @@ class Database:
             conn.execute(update(events).where(events.c.id == event_id).values(**values))
 
     def unfinished_clips(self, camera_id: int | None = None) -> list[dict[str, Any]]:
-        """Events whose clip was being recorded when its camera's process ended."""
+        """Events whose clip was being recorded when its camera's process ended: of those
+        whose file is on this node's disk (made by ``node``, or before nodes), when it has one.
+        Another node's stay as they are until that node finishes them at its start."""
         query = select(events).where(events.c.clip_path.is_not(None), events.c.clip_s.is_(None))
+        if self.node is not None:
+            query = query.where(events.c.node.is_(None) | (events.c.node == self.node))
         if camera_id is not None:
             query = query.where(events.c.camera_id == camera_id)
         return [_event(r) for r in self._rows(query.order_by(events.c.id))]

@@ -208,6 +208,8 @@ class CameraStatus(WsMessage):
     show_mask: bool | None = None
     mask: list[list[list[Number]]] | None = None
     """Ignore zones: polygons of ``[x, y]`` fractions of the frame."""
+    pinned_to: str | None = None
+    """The only node that may run it (null: any); only after a ``PATCH`` that set it."""
 
 
 AnalysisState = Literal["queued", "running", "done", "failed"]

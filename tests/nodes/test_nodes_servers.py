@@ -1,0 +1,101 @@
+"""Nodes as servers (app/nodes/keeper.py): two real servers sharing one real PostgreSQL run
+each camera once; a camera activated on the node that does not run it alarms on the one
+that does, which names itself in the event; a node that stops hands its cameras over at
+once; a node taking over a dead node's camera ends the event it left open (motion_end)."""
+
+from __future__ import annotations
+
+import time
+from pathlib import Path
+from typing import Any
+
+import httpx
+from sqlalchemy import update
+
+from app.storage import Database
+from app.storage.schema import cameras
+from tests.api.vigil_livekit import (
+    WsClient,
+    add_camera,
+    live_settings,
+    running_server,
+    wait_for,
+    write_video,
+)
+
+LEASE_S = 3.0
+
+
+def _node(tmp_path: Path, name: str, postgres_url: str) -> Any:
+    return live_settings(
+        tmp_path / name, database_url=postgres_url, node_name=name, lease_s=LEASE_S
+    )
+
+
+def _live(base: str) -> list[int]:
+    """The cameras this server runs and shows live."""
+    return sorted(c["id"] for c in httpx.get(f"{base}/api/cameras").json() if c["state"] == "live")
+
+
+def test_two_nodes_run_each_camera_once_and_its_activation_follows_it(
+    postgres_url: str, tmp_path: Path
+) -> None:
+    video = write_video(tmp_path / "door.avi", frames=75)
+    north_settings = _node(tmp_path, "north", postgres_url)
+    south_settings = _node(tmp_path, "south", postgres_url)
+    with (
+        running_server(north_settings) as north,
+        running_server(south_settings) as south,
+        WsClient(south.ws) as south_ws,
+    ):
+        ids = [add_camera(north.base, f"file://{video}", f"cam{i}") for i in range(4)]
+        running = wait_for(
+            lambda: (
+                (r := {"north": _live(north.base), "south": _live(south.base)})
+                and sorted(r["north"] + r["south"]) == ids
+                and len(r["north"]) == len(r["south"]) == 2
+                and r
+            ),
+            30,
+            "two cameras live on each node",
+        )
+        for server in (north, south):  # Both say where each camera runs.
+            shown = {c["id"]: c["node"] for c in httpx.get(f"{server.base}/api/cameras").json()}
+            assert shown == {i: n for n, held in running.items() for i in held}
+        elsewhere = httpx.get(f"{north.base}/api/cameras/{running['south'][0]}").json()
+        assert elsewhere["reason"] == "runs on node south"
+
+        camera = running["south"][0]  # Activated on north, which does not run it.
+        httpx.post(f"{north.base}/api/cameras/{camera}/activate").raise_for_status()
+        alarm = south_ws.wait("alarm", 30, camera_id=camera)[0]
+        event = httpx.get(f"{north.base}/api/events/{alarm['event_id']}").json()
+        assert event["node"] == "south"
+
+        stopped = time.monotonic()
+        north.stop()  # Stopping, north gives its leases up: south need not wait for them.
+        wait_for(lambda: _live(south.base) == ids, 15, "south to run all four")
+        assert time.monotonic() - stopped < LEASE_S + 5
+
+
+def test_a_node_taking_over_ends_the_event_its_dead_node_left_open(
+    postgres_url: str, tmp_path: Path
+) -> None:
+    video = write_video(tmp_path / "door.avi")
+    with running_server(_node(tmp_path, "south", postgres_url)) as south, WsClient(south.ws) as ws:
+        # As a node "ghost" killed during an event leaves it: its lease ran out, the
+        # event is open.
+        ghost = Database(postgres_url, migrate=False, node="ghost")
+        camera = ghost.add_camera("door", f"file://{video}", "adaptive", 100.0)
+        opened = ghost.add_event(camera, time.time() - 20, [[10, 10, 40, 40]], 1600.0)
+        with ghost.transaction() as conn:
+            lapsed = {"node": "ghost", "lease_until": time.time() - 5}
+            conn.execute(update(cameras).where(cameras.c.id == camera).values(**lapsed))
+
+        end = ws.wait("motion_end", 20, camera_id=camera)[0]
+        assert end["event_id"] == opened
+        event = ghost.event(opened)
+        assert event is not None and event["ended_at"] == event["started_at"]
+        assert event["node"] == "ghost"  # Made by ghost, ended by south.
+        wait_for(lambda: _live(south.base) == [camera], 15, "south to run the camera")
+        assert httpx.get(f"{south.base}/api/cameras/{camera}").json()["node"] == "south"
+        ghost.close()

@@ -19,7 +19,7 @@ from app.mqtt.bridge import MqttBridge
 from app.mqtt.broker import Broker
 from app.mqtt.mirror import CameraInfo
 from app.nodes.keeper import NodeKeeper
-from app.nodes.leases import Leases, Node
+from app.nodes.leases import Leases, Node, site
 from app.notify.notifier import Notifier
 from app.sources.live import without_password
 from app.storage.clips import ClipStore, finish_unfinished
@@ -181,6 +181,24 @@ class Services:
         """Which database: ``{"engine": "sqlite"}`` or ``{"engine": "postgresql"}`` (no
         address: /api/health answers without a password)."""
         return {"engine": self.database.dialect}
+
+    def nodes(self) -> list[dict[str, Any]]:
+        """The site's nodes (``GET /api/nodes``): from the database, or this one alone."""
+        settings = self.settings
+        if not self.alone:
+            return site(self.database, settings.lease_s)
+        running = sorted(camera.camera_id for camera in self.cameras.all())
+        return [
+            {
+                "name": settings.node,
+                "url": settings.node_address,
+                "cameras": running,
+                "renewed_at": time.time(),
+                "load": len(running) / settings.node_capacity,
+                "capacity": settings.node_capacity,
+                "alive": True,
+            }
+        ]
 
     def storage(self) -> dict[str, Any]:
         """Free space, the snapshots' and clips' totals and cap, and why snapshots or clips

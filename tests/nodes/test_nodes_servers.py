@@ -26,9 +26,10 @@ from tests.api.vigil_livekit import (
 LEASE_S = 3.0
 
 
-def _node(tmp_path: Path, name: str, postgres_url: str) -> Any:
+def _node(tmp_path: Path, name: str, postgres_url: str | None) -> Any:
+    url = f"http://{name}.example:8000" if postgres_url else ""  # Alone: the default.
     return live_settings(
-        tmp_path / name, database_url=postgres_url, node_name=name, lease_s=LEASE_S
+        tmp_path / name, database_url=postgres_url, node_name=name, node_url=url, lease_s=LEASE_S
     )
 
 
@@ -64,6 +65,16 @@ def test_two_nodes_run_each_camera_once_and_its_activation_follows_it(
             assert shown == {i: n for n, held in running.items() for i in held}
         elsewhere = httpx.get(f"{north.base}/api/cameras/{running['south'][0]}").json()
         assert elsewhere["reason"] == "runs on node south"
+        site = httpx.get(f"{south.base}/api/nodes").json()
+        assert [(n["name"], n["cameras"], n["alive"]) for n in site] == [
+            ("north", running["north"], True),
+            ("south", running["south"], True),
+        ]
+        assert (
+            site[0]["url"] == "http://north.example:8000"
+            and site[0]["load"] == 2 / site[0]["capacity"]
+        )
+        assert time.time() - site[1]["renewed_at"] < LEASE_S
 
         camera = running["south"][0]  # Activated on north, which does not run it.
         httpx.post(f"{north.base}/api/cameras/{camera}/activate").raise_for_status()
@@ -75,6 +86,8 @@ def test_two_nodes_run_each_camera_once_and_its_activation_follows_it(
         north.stop()  # Stopping, north gives its leases up: south need not wait for them.
         wait_for(lambda: _live(south.base) == ids, 15, "south to run all four")
         assert time.monotonic() - stopped < LEASE_S + 5
+        (alone,) = httpx.get(f"{south.base}/api/nodes").json()
+        assert (alone["name"], alone["cameras"]) == ("south", ids)
 
 
 def test_a_node_taking_over_ends_the_event_its_dead_node_left_open(
@@ -99,3 +112,16 @@ def test_a_node_taking_over_ends_the_event_its_dead_node_left_open(
         wait_for(lambda: _live(south.base) == [camera], 15, "south to run the camera")
         assert httpx.get(f"{south.base}/api/cameras/{camera}").json()["node"] == "south"
         ghost.close()
+
+
+def test_without_a_shared_database_the_node_is_alone_with_every_camera(tmp_path: Path) -> None:
+    video = write_video(tmp_path / "door.avi")
+    settings = _node(tmp_path, "lone", None)  # SQLite: no leases, every camera runs here.
+    with running_server(settings) as server:
+        ids = [add_camera(server.base, f"file://{video}", f"cam{i}") for i in range(2)]
+        wait_for(lambda: _live(server.base) == ids, 15, "both cameras live")
+        (node,) = httpx.get(f"{server.base}/api/nodes").json()
+        assert (node["name"], node["cameras"], node["alive"]) == ("lone", ids, True)
+        assert node["url"] == "http://127.0.0.1:8000"  # VIGIL_HOST and VIGIL_PORT's
+        assert node["load"] == 2 / node["capacity"]
+        assert {c["node"] for c in httpx.get(f"{server.base}/api/cameras").json()} == {"lone"}

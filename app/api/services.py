@@ -66,6 +66,7 @@ class Services:
                 settings.mqtt_discovery_prefix,
                 MqttControl(self),
                 settings.mqtt_reconnect_max_s,
+                node=None if self.alone else settings.node,
             )
 
     @property
@@ -351,6 +352,12 @@ class MqttControl:
             return svc.snapshots.path(row["path"]).read_bytes()
         except (OSError, ValueError):  # Deleted meanwhile; a path outside the folder.
             return None
+
+    def elsewhere(self) -> frozenset[int]:
+        keeper = self.services.keeper
+        if keeper is None:  # Alone: every camera runs here.
+            return frozenset()
+        return keeper.site - {camera.camera_id for camera in self.services.cameras.all()}
 
     def latest_snapshots(self, camera_ids: list[int]) -> dict[int, int]:
         latest = {}

@@ -37,6 +37,8 @@ class NodeKeeper:
         self._wake = threading.Event()
         self._stopping = threading.Event()
         self._thread = threading.Thread(target=self._run, name="leases", daemon=True)
+        self.site: frozenset[int] = frozenset()
+        """Every camera of the site, as the last renewal read them."""
 
     def start(self) -> None:
         """Renew once now (the server answers with its cameras running), then every period."""
@@ -63,8 +65,9 @@ class NodeKeeper:
     def renew(self) -> None:
         held = set(self.leases.renew())
         with self.cameras.changing:  # Not while the API changes a row and its worker.
-            rows = {r["id"]: r for r in self.db.cameras() if r["id"] in held}
-            self._place(rows)
+            every = self.db.cameras()
+            self.site = frozenset(r["id"] for r in every)
+            self._place({r["id"]: r for r in every if r["id"] in held})
 
     def _run(self) -> None:
         renewed = time.monotonic()

@@ -324,7 +324,10 @@ class Notifier:
                 log.exception("notifications: a %s message not handled", message.get("type"))
 
     def handle(self, message: Wire) -> None:
-        """An ``alarm`` offered to every target; a ``motion_end`` forgets its event."""
+        """An ``alarm`` offered to every target; a ``motion_end`` forgets its event. Another
+        node's (relayed over MQTT for its pages) are that node's to send."""
+        if message.get("node") not in (None, self.settings.node):
+            return
         kind = message.get("type")
         if kind == "motion_end":
             event = message["event_id"]

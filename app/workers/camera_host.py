@@ -193,6 +193,7 @@ def _end_events(
                 event["max_area"],
                 clip,
                 event["clip_s"] if clip else None,
+                node=db.node,
             )
         )
 

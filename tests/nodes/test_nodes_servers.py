@@ -1,7 +1,8 @@
 """Nodes as servers (app/nodes/keeper.py): two real servers sharing one real PostgreSQL run
 each camera once; a camera activated on the node that does not run it alarms on the one
 that does, which names itself in the event; a node that stops hands its cameras over at
-once; a node taking over a dead node's camera ends the event it left open (motion_end)."""
+once; a node taking over a dead node's camera ends the event it left open (motion_end);
+over the broker every node shows every alarm."""
 
 from __future__ import annotations
 
@@ -22,14 +23,21 @@ from tests.api.vigil_livekit import (
     wait_for,
     write_video,
 )
+from tests.mqtt.mosquitto import Mosquitto, retained
+from tests.notify.receivers import WebhookReceiver
 
 LEASE_S = 3.0
 
 
-def _node(tmp_path: Path, name: str, postgres_url: str | None) -> Any:
+def _node(tmp_path: Path, name: str, postgres_url: str | None, **more: Any) -> Any:
     url = f"http://{name}.example:8000" if postgres_url else ""  # Alone: the default.
     return live_settings(
-        tmp_path / name, database_url=postgres_url, node_name=name, node_url=url, lease_s=LEASE_S
+        tmp_path / name,
+        database_url=postgres_url,
+        node_name=name,
+        node_url=url,
+        lease_s=LEASE_S,
+        **more,
     )
 
 
@@ -125,3 +133,59 @@ def test_without_a_shared_database_the_node_is_alone_with_every_camera(tmp_path:
         assert node["url"] == "http://127.0.0.1:8000"  # VIGIL_HOST and VIGIL_PORT's
         assert node["load"] == 2 / node["capacity"]
         assert {c["node"] for c in httpx.get(f"{server.base}/api/cameras").json()} == {"lone"}
+
+
+def test_every_node_shows_every_alarm_and_only_the_cameras_node_notifies(
+    postgres_url: str, tmp_path: Path
+) -> None:
+    """Over a real Mosquitto: each node's /ws carries the other node's alarms and
+    motion_end (naming that node), once; a notification target of the site hears of each
+    event once, from the camera's node; neither node removes the other's cameras from the
+    broker; one node stopping leaves the site online."""
+    broker = Mosquitto(tmp_path / "broker").start()
+    webhook = WebhookReceiver().start()
+    video = write_video(tmp_path / "door.avi", frames=300)  # One crossing every 20 s.
+    shared = {"mqtt_url": broker.url, "mqtt_reconnect_max_s": 1.0, "notify_urls": webhook.url()}
+    try:
+        with (
+            running_server(_node(tmp_path, "north", postgres_url, **shared)) as north,
+            running_server(_node(tmp_path, "south", postgres_url, **shared)) as south,
+            WsClient(north.ws) as north_ws,
+            WsClient(south.ws) as south_ws,
+        ):
+            ids = [add_camera(north.base, f"file://{video}", f"cam{i}") for i in range(2)]
+            running = wait_for(
+                lambda: (
+                    (r := {"north": _live(north.base), "south": _live(south.base)})
+                    and sorted(r["north"] + r["south"]) == ids
+                    and len(r["north"]) == 1
+                    and r
+                ),
+                30,
+                "one camera live on each node",
+            )
+            for camera in ids:
+                httpx.post(f"{north.base}/api/cameras/{camera}/activate").raise_for_status()
+            for name, ws in (("north", north_ws), ("south", south_ws)):
+                for node, (camera,) in running.items():
+                    alarm = ws.wait("alarm", 30, camera_id=camera)[0]
+                    assert alarm["node"] == node, name
+                    end = ws.wait("motion_end", 30, camera_id=camera)[0]
+                    assert (end["event_id"], end["node"]) == (alarm["event_id"], node)
+                alarms = [(m["event_id"], m["ts"]) for m in ws.of_type("alarm")]
+                assert len(alarms) == len(set(alarms)), f"an alarm twice on {name}'s /ws"
+            hooks = webhook.wait(2, 15)
+            time.sleep(2)
+            assert len(webhook.received()) == len(hooks) == 2, "one message per event"
+            held = retained(broker.port, ("vigil/cameras/+/active",))
+            assert held == {f"vigil/cameras/{camera}/active": b"ON" for camera in ids}
+
+            north.stop()  # It says offline as it goes; the site is not: south says so.
+            wait_for(
+                lambda: retained(broker.port, ("vigil/status",)) == {"vigil/status": b"online"},
+                10,
+                "south to say the site is online",
+            )
+    finally:
+        webhook.stop()
+        broker.stop()

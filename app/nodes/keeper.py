@@ -71,20 +71,27 @@ class NodeKeeper:
 
     def _run(self) -> None:
         renewed = time.monotonic()
+        failing = False
         while True:
             self._wake.wait(self.leases.period_s)
             self._wake.clear()
             if self._stopping.is_set():
                 return
+            started = time.monotonic()  # The lease runs from no later than this.
             try:
                 self.renew()
-                renewed = time.monotonic()
             except Exception:
-                log.exception("renewing the leases failed")
+                if not failing:  # Once per outage, not at every renewal.
+                    log.warning("cannot renew the leases: retrying", exc_info=True)
+                failing = True
                 if time.monotonic() - renewed > self.leases.lease_s and self.cameras.all():
                     log.error("the leases have run out: stopping every camera of this node")
                     with self.cameras.changing:
                         self._place({})
+                continue
+            if failing:
+                log.info("leases renewed again")
+            renewed, failing = started, False
 
     def _place(self, rows: dict[int, dict[str, Any]]) -> None:
         for running in self.cameras.all():

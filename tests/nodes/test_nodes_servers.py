@@ -2,7 +2,8 @@
 each camera once; a camera activated on the node that does not run it alarms on the one
 that does, which names itself in the event; a node that stops hands its cameras over at
 once; a node taking over a dead node's camera ends the event it left open (motion_end);
-over the broker every node shows every alarm."""
+over the broker every node shows every alarm; a node cut off from the database stops its
+cameras once its leases have run out."""
 
 from __future__ import annotations
 
@@ -25,6 +26,7 @@ from tests.api.vigil_livekit import (
 )
 from tests.mqtt.mosquitto import Mosquitto, retained
 from tests.notify.receivers import WebhookReceiver
+from tests.postgres import Cluster
 
 LEASE_S = 3.0
 
@@ -189,3 +191,27 @@ def test_every_node_shows_every_alarm_and_only_the_cameras_node_notifies(
     finally:
         webhook.stop()
         broker.stop()
+
+
+def test_a_node_cut_off_from_the_database_stops_its_cameras_when_its_leases_run_out(
+    tmp_path: Path,
+) -> None:
+    """Past its leases, the others may have taken its cameras: a node that cannot renew
+    must not run them too. Until then they go on: a database restarting costs nothing."""
+    cluster = Cluster().start()  # Its own: this test stops it.
+    try:
+        video = write_video(tmp_path / "door.avi")
+        with running_server(_node(tmp_path, "north", cluster.database())) as north:
+            camera = add_camera(north.base, f"file://{video}", "door")
+            wait_for(lambda: _live(north.base) == [camera], 20, "the camera live")
+            cameras = north.server.config.app.state.services.cameras  # type: ignore[attr-defined]
+            cluster.stop()
+            cut = time.monotonic()
+            time.sleep(LEASE_S / 2)
+            assert [c.camera_id for c in cameras.all()] == [camera], "it goes on meanwhile"
+            wait_for(lambda: not cameras.all(), LEASE_S + 5, "the camera to stop")
+            stopped_after = time.monotonic() - cut
+            period = LEASE_S / 3
+            assert LEASE_S - period - 0.5 <= stopped_after <= LEASE_S + period + 1.0
+    finally:
+        cluster.stop()

@@ -48,7 +48,7 @@ def _live(base: str) -> list[int]:
     return sorted(c["id"] for c in httpx.get(f"{base}/api/cameras").json() if c["state"] == "live")
 
 
-def test_two_nodes_run_each_camera_once_and_its_activation_follows_it(
+def test_two_nodes_run_each_camera_once_and_its_activation_and_pin_follow_it(
     postgres_url: str, tmp_path: Path
 ) -> None:
     video = write_video(tmp_path / "door.avi", frames=75)
@@ -91,6 +91,18 @@ def test_two_nodes_run_each_camera_once_and_its_activation_follows_it(
         alarm = south_ws.wait("alarm", 30, camera_id=camera)[0]
         event = httpx.get(f"{north.base}/api/events/{alarm['event_id']}").json()
         assert event["node"] == "south"
+
+        usb = running["north"][0]  # Pinned to south (through north): it moves there.
+        pinned = httpx.patch(f"{north.base}/api/cameras/{usb}", json={"pinned_to": "south"})
+        assert pinned.json()["pinned_to"] == "south"
+        wait_for(
+            lambda: (
+                _live(south.base) == sorted([usb, *running["south"]])
+                and _live(north.base) == running["north"][1:]
+            ),
+            15,
+            "the pinned camera on south",
+        )
 
         stopped = time.monotonic()
         north.stop()  # Stopping, north gives its leases up: south need not wait for them.

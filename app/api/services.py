@@ -121,8 +121,8 @@ class Services:
             settings.analysis_timeout_s,
             AnalysisLimits(settings.max_upload_pixels, settings.analysis_memory_mb or None),
         )
-        if settings.demo_camera and not self.db.cameras():
-            self.db.add_camera("demo", "demo", DEFAULT_METHOD, settings.default_min_area)
+        demo = ("demo", "demo", DEFAULT_METHOD, settings.default_min_area)
+        if settings.demo_camera and self.db.add_first_camera(*demo) is not None:
             log.info("no camera configured: added the demo camera")
         if self.alone:
             self._cameras.start_all(self.db.cameras())

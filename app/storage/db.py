@@ -70,6 +70,7 @@ FLAGS = ("show_mask", "active")
 """Camera fields kept as 0 or 1."""
 ANALYSIS_FIELDS = frozenset({"status", "progress", "error", "finished_at"})
 CHUNK = 500
+FIRST_CAMERA_LOCK = 0x76696763  # "vigc": PostgreSQL's advisory lock of add_first_camera.
 """Ids per ``IN (...)`` of a long list."""
 
 
@@ -168,16 +169,20 @@ class Database:
     def add_camera(
         self, name: str, source: str, method: str, min_area: float, sensitivity: float | None = None
     ) -> int:
-        return self._insert(
-            insert(cameras).values(
-                name=name,
-                source=source,
-                sensitivity=sensitivity,
-                min_area=min_area,
-                method=method,
-                created_at=time.time(),
-            )
-        )
+        return self._insert(_new_camera(name, source, method, min_area, sensitivity))
+
+    def add_first_camera(self, name: str, source: str, method: str, min_area: float) -> int | None:
+        """Add this camera if there is none at all (a fresh install's demo camera): its id,
+        or None. Of nodes starting together, one adds it: on PostgreSQL the look and the
+        insert hold a lock of their own for the transaction, as SQLite's write lock does."""
+        with self.transaction() as conn:
+            if conn.dialect.name == engines.POSTGRESQL:
+                conn.execute(select(func.pg_advisory_xact_lock(FIRST_CAMERA_LOCK)))
+            if conn.execute(select(cameras.c.id).limit(1)).first() is not None:
+                return None
+            key = conn.execute(_new_camera(name, source, method, min_area)).inserted_primary_key
+        assert key is not None
+        return int(key[0])
 
     def cameras(self) -> list[dict[str, Any]]:
         return [_camera(r) for r in self._rows(select(cameras).order_by(cameras.c.id))]
@@ -697,6 +702,19 @@ def _chunks(ids: Iterable[int]) -> Iterator[list[int]]:
     valid = [i for i in ids if _is_row_id(i)]
     for start in range(0, len(valid), CHUNK):
         yield valid[start : start + CHUNK]
+
+
+def _new_camera(
+    name: str, source: str, method: str, min_area: float, sensitivity: float | None = None
+) -> Insert:
+    return insert(cameras).values(
+        name=name,
+        source=source,
+        sensitivity=sensitivity,
+        min_area=min_area,
+        method=method,
+        created_at=time.time(),
+    )
 
 
 def _camera(row: dict[str, Any]) -> dict[str, Any]:

@@ -128,9 +128,10 @@ class Services:
             self._cameras.start_all(self.db.cameras())
         else:
             node = Node(settings.node, settings.node_address, settings.node_capacity)
-            self.keeper = NodeKeeper(
-                Leases(self.db, node, settings.lease_s), self.db, self._cameras
-            )
+            leases = Leases(self.db, node, settings.lease_s)
+            # The notification targets another node's API changed follow too.
+            follow = self.notifier.follow_targets
+            self.keeper = NodeKeeper(leases, self.db, self._cameras, also=follow)
             self.keeper.start()
             log.info("node %s of the site: runs up to %d cameras", node.name, node.capacity)
         self._analyses.start()

@@ -15,6 +15,7 @@ from __future__ import annotations
 import logging
 import threading
 import time
+from collections.abc import Callable
 from typing import Any
 
 from app.nodes.leases import Leases
@@ -30,10 +31,18 @@ STOP_WAIT_S = 10.0
 
 
 class NodeKeeper:
-    def __init__(self, leases: Leases, db: Database, cameras: CameraManager) -> None:
+    def __init__(
+        self,
+        leases: Leases,
+        db: Database,
+        cameras: CameraManager,
+        also: Callable[[], None] = lambda: None,
+    ) -> None:
+        """``also``: what else follows the database at each renewal."""
         self.leases = leases
         self.db = db
         self.cameras = cameras
+        self.also = also
         self._wake = threading.Event()
         self._stopping = threading.Event()
         self._thread = threading.Thread(target=self._run, name="leases", daemon=True)
@@ -68,6 +77,7 @@ class NodeKeeper:
             every = self.db.cameras()
             self.site = frozenset(r["id"] for r in every)
             self._place({r["id"]: r for r in every if r["id"] in held})
+        self.also()
 
     def _run(self) -> None:
         renewed = time.monotonic()

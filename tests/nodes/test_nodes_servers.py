@@ -227,3 +227,45 @@ def test_a_node_cut_off_from_the_database_stops_its_cameras_when_its_leases_run_
             assert LEASE_S - period - 0.5 <= stopped_after <= LEASE_S + period + 1.0
     finally:
         cluster.stop()
+
+
+def test_a_notification_target_added_through_one_node_hears_the_others_cameras(
+    postgres_url: str, tmp_path: Path
+) -> None:
+    webhook = WebhookReceiver().start()
+    video = write_video(tmp_path / "door.avi", frames=300)  # One crossing every 20 s.
+    try:
+        with (
+            running_server(_node(tmp_path, "north", postgres_url)) as north,
+            running_server(_node(tmp_path, "south", postgres_url)) as south,
+        ):
+            camera = add_camera(south.base, f"file://{video}", "door")
+            placed = wait_for(
+                lambda: [n for n, s in (("north", north), ("south", south)) if _live(s.base)],
+                20,
+                "the camera live on one node",
+            )
+            runs, other = (north, south) if placed == ["north"] else (south, north)
+            added = httpx.post(f"{other.base}/api/notifications", json={"url": webhook.url()})
+            assert added.status_code == 201, added.text
+            target = added.json()["id"]
+            wait_for(
+                lambda: (
+                    [t["id"] for t in httpx.get(f"{runs.base}/api/notifications").json()]
+                    == [target]
+                ),
+                10,
+                "the target known where the camera runs",
+            )
+            httpx.post(f"{other.base}/api/cameras/{camera}/activate").raise_for_status()
+            (hook,) = webhook.wait(1, 30)
+            assert "door" in hook.body["title"]
+
+            assert httpx.delete(f"{other.base}/api/notifications/{target}").status_code == 204
+            wait_for(
+                lambda: httpx.get(f"{runs.base}/api/notifications").json() == [],
+                10,
+                "the target gone where the camera runs",
+            )
+    finally:
+        webhook.stop()

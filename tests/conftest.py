@@ -11,6 +11,7 @@ import numpy as np
 import pytest
 
 from app.sources.synthetic import Scene
+from app.storage.engine import Target
 from tests.postgres import Cluster
 from tests.postgres import missing as postgres_missing
 
@@ -94,3 +95,13 @@ def postgres_url(postgres: Cluster) -> Iterator[str]:
     url = postgres.database()
     yield url
     postgres.drop(url)
+
+
+@pytest.fixture(params=["sqlite", "postgresql"])
+def db_target(request: pytest.FixtureRequest, tmp_path: Path) -> Target:
+    """Where a fresh database is, for a test run on both: a SQLite file, or a PostgreSQL
+    database of its own (skipped where PostgreSQL cannot be run)."""
+    if request.param == "sqlite":
+        return tmp_path / "v.db"
+    url: str = request.getfixturevalue("postgres_url")
+    return url

@@ -25,6 +25,7 @@ from app.api.routes import (
     health,
     live,
     metrics,
+    nodes,
     notifications,
     pages,
     snapshots,
@@ -76,8 +77,8 @@ def create_app(settings: Settings | None = None) -> FastAPI:
     application.state.services = services
     application.state.settings = settings
     application.state.access = access
-    routers = (health, metrics, auth, cameras, streams, analyses, events, snapshots, notifications)
-    for module in (*routers, ws, live, pages):
+    routers = (health, metrics, auth, cameras, streams, analyses, events, snapshots)
+    for module in (*routers, notifications, nodes, ws, live, pages):
         application.include_router(module.router)
     application.add_exception_handler(RequestValidationError, validation_error)
     if STATIC_DIR.is_dir():

@@ -18,6 +18,8 @@ from app.events.messages import DELETED_IDS_PER_MESSAGE, CameraStatus, Snapshots
 from app.mqtt.bridge import MqttBridge
 from app.mqtt.broker import Broker
 from app.mqtt.mirror import CameraInfo
+from app.nodes.keeper import NodeKeeper
+from app.nodes.leases import Leases, Node, site
 from app.notify.notifier import Notifier
 from app.sources.live import without_password
 from app.storage.clips import ClipStore, finish_unfinished
@@ -48,6 +50,10 @@ class Services:
         self._snapshots: SnapshotStore | None = None
         self._clips: ClipStore | None = None
         self._cameras: CameraManager | None = None
+        self.alone = settings.database_url is None
+        """Without a shared database this node is alone: it runs every camera, as always.
+        With one, it runs those it leases (``keeper``)."""
+        self.keeper: NodeKeeper | None = None
         self._analyses: AnalysisManager | None = None
         self._stopping = threading.Event()
         self._pruner: threading.Thread | None = None
@@ -60,6 +66,7 @@ class Services:
                 settings.mqtt_discovery_prefix,
                 MqttControl(self),
                 settings.mqtt_reconnect_max_s,
+                node=None if self.alone else settings.node,
             )
 
     @property
@@ -91,11 +98,13 @@ class Services:
     def start(self) -> None:
         settings = self.settings
         settings.data_dir.mkdir(parents=True, exist_ok=True)
-        self.db = Database(settings.database)  # Migrated first, before any camera process.
+        # Migrated first, before any camera process.
+        self.db = Database(settings.database, node=settings.node)
         log.info("database: %s, %s", self.db.dialect, self.db.shown)
-        closed = len(self.db.close_open_events())  # No worker runs yet: the last run's.
-        if closed:
-            log.info("closed %d event(s) left open when the server last stopped", closed)
+        if self.alone:  # No worker runs yet: the last run's. (Nodes end them on taking over.)
+            closed = len(self.db.close_open_events())
+            if closed:
+                log.info("closed %d event(s) left open when the server last stopped", closed)
         self._snapshots = SnapshotStore(
             settings.snapshots_dir, on_deleted=self.announce_deleted_snapshots
         )
@@ -112,10 +121,19 @@ class Services:
             settings.analysis_timeout_s,
             AnalysisLimits(settings.max_upload_pixels, settings.analysis_memory_mb or None),
         )
-        if settings.demo_camera and not self.db.cameras():
-            self.db.add_camera("demo", "demo", DEFAULT_METHOD, settings.default_min_area)
+        demo = ("demo", "demo", DEFAULT_METHOD, settings.default_min_area)
+        if settings.demo_camera and self.db.add_first_camera(*demo) is not None:
             log.info("no camera configured: added the demo camera")
-        self._cameras.start_all(self.db.cameras())
+        if self.alone:
+            self._cameras.start_all(self.db.cameras())
+        else:
+            node = Node(settings.node, settings.node_address, settings.node_capacity)
+            leases = Leases(self.db, node, settings.lease_s)
+            # The notification targets another node's API changed follow too.
+            follow = self.notifier.follow_targets
+            self.keeper = NodeKeeper(leases, self.db, self._cameras, also=follow)
+            self.keeper.start()
+            log.info("node %s of the site: runs up to %d cameras", node.name, node.capacity)
         self._analyses.start()
         if settings.retention_days > 0 or settings.retention_mb > 0:
             self._pruner = threading.Thread(
@@ -166,6 +184,24 @@ class Services:
         address: /api/health answers without a password)."""
         return {"engine": self.database.dialect}
 
+    def nodes(self) -> list[dict[str, Any]]:
+        """The site's nodes (``GET /api/nodes``): from the database, or this one alone."""
+        settings = self.settings
+        if not self.alone:
+            return site(self.database, settings.lease_s)
+        running = sorted(camera.camera_id for camera in self.cameras.all())
+        return [
+            {
+                "name": settings.node,
+                "url": settings.node_address,
+                "cameras": running,
+                "renewed_at": time.time(),
+                "load": len(running) / settings.node_capacity,
+                "capacity": settings.node_capacity,
+                "alive": True,
+            }
+        ]
+
     def storage(self) -> dict[str, Any]:
         """Free space, the snapshots' and clips' totals and cap, and why snapshots or clips
         fail (None: they don't)."""
@@ -194,22 +230,41 @@ class Services:
         self.bus.close()
         if self._analyses is not None:
             self._analyses.stop(timeout=2.0)
+        if self.keeper is not None:
+            self.keeper.stop()
         if self._cameras is not None:
             # A worker blocked in a network read returns within the read timeout.
             self._cameras.stop_all(timeout=self.settings.read_timeout_ms / 1000 + 2.0)
+        if self.keeper is not None:  # Its cameras' events ended: the others may take them.
+            self.keeper.leave()
         self.notifier.stop()
         if self.db is not None:
             self.db.close()
 
+    def add_camera(self, camera: dict[str, Any]) -> None:
+        """A camera just added to the database: run it here, or (nodes) let the leases
+        place it, at once."""
+        if self.keeper is None:
+            self.cameras.start(camera)
+        else:
+            self.keeper.wake()
+
+    def delete_camera(self, camera_id: int) -> None:
+        with self.cameras.changing:  # Not started again meanwhile by a renewal.
+            self.cameras.remove(camera_id)
+            self.database.delete_camera(camera_id)
+
     def set_active(self, camera_id: int, active: bool) -> dict[str, Any] | None:
         """Activate or Stop a camera (``POST /api/cameras/{id}/activate|stop``, MQTT's
-        ``active/set``); the camera as the API shows it, None when there is none."""
-        camera = self.database.update_camera(camera_id, active=int(active))
-        if camera is None:
-            return None
-        worker = self.cameras.get(camera_id)
-        if worker is not None:
-            worker.set_active(active)  # Its status (on /ws) follows at once.
+        ``active/set``); the camera as the API shows it, None when there is none. On
+        another node, its worker follows the row at that node's next renewal."""
+        with self.cameras.changing:
+            camera = self.database.update_camera(camera_id, active=int(active))
+            if camera is None:
+                return None
+            worker = self.cameras.get(camera_id)
+            if worker is not None:
+                worker.set_active(active)  # Its status (on /ws) follows at once.
         return self.camera_view(camera)
 
     def change_camera(
@@ -219,14 +274,17 @@ class Services:
         /api/cameras/{id}``, MQTT's ``sensitivity/set``): stored, given to its worker (a new
         worker for a new source), and told to every page. The camera as the API shows it;
         None when there is none."""
-        camera = self.database.update_camera(camera_id, **changes)
-        if camera is None:
-            return None
-        worker = self.cameras.get(camera_id)
-        if worker is None or ("source" in changes and changes["source"] != before["source"]):
-            self.cameras.start(camera)
-        else:
-            worker.update(**changes)
+        with self.cameras.changing:
+            camera = self.database.update_camera(camera_id, **changes)
+            if camera is None:
+                return None
+            worker = self.cameras.get(camera_id)
+            if worker is not None and changes.get("source", before["source"]) == before["source"]:
+                worker.update(**changes)
+            elif worker is not None or self.keeper is None:
+                self.cameras.start(camera)
+        if self.keeper is not None:  # Its node (this one, or another at its next renewal)
+            self.keeper.wake()  # follows the row; a new pin moves it.
         view = self.camera_view(camera)
         # Every page shows the change at once, not at its next listing of the cameras.
         status = {key: view[key] for key in STATUS_FIELDS if key in view}
@@ -238,7 +296,13 @@ class Services:
         """A camera as the API shows it: its settings (the source ``without_password``), its
         live state and its URLs."""
         worker = self.cameras.get(camera["id"])
-        status = worker.status() if worker else {"state": "stopped", "reason": "", "fps": 0.0}
+        node = self.settings.node if self.alone else camera["node"]
+        if worker is not None:
+            status = worker.status()
+        elif node is None or node == self.settings.node:
+            status = {"state": "stopped", "reason": "", "fps": 0.0}
+        else:
+            status = {"state": "stopped", "reason": f"runs on node {node}", "fps": 0.0}
         status.pop("camera_id", None)
         base = f"/api/cameras/{camera['id']}"
         return {
@@ -246,6 +310,7 @@ class Services:
             **status,
             "source": without_password(camera["source"]),
             "active": camera["active"],
+            "node": node,
             "stream": f"{base}/stream.mjpg",
             "histogram": f"{base}/histogram.mjpg",
             "frame": f"{base}/frame.jpg",
@@ -288,6 +353,12 @@ class MqttControl:
             return svc.snapshots.path(row["path"]).read_bytes()
         except (OSError, ValueError):  # Deleted meanwhile; a path outside the folder.
             return None
+
+    def elsewhere(self) -> frozenset[int]:
+        keeper = self.services.keeper
+        if keeper is None:  # Alone: every camera runs here.
+            return frozenset()
+        return keeper.site - {camera.camera_id for camera in self.services.cameras.all()}
 
     def latest_snapshots(self, camera_ids: list[int]) -> dict[int, int]:
         latest = {}

@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import os
+import socket
 from pathlib import Path
 from typing import Literal
 
@@ -9,6 +11,9 @@ from pydantic import Field, field_validator
 from pydantic_settings import BaseSettings, SettingsConfigDict
 
 MAX_PORT = 65535
+CAMERAS_PER_CORE = 20
+"""A node's capacity by default: one machine of two cores carries about 45 activated
+cameras (bench/bench_cameras.py)."""
 
 
 class Settings(BaseSettings):
@@ -152,6 +157,32 @@ class Settings(BaseSettings):
     def _check_discovery_prefix(cls, value: str) -> str:
         return _topic_prefix(value, "a discovery prefix") if value.strip() else ""
 
+    # Several machines (app/nodes, docs/scaling.md): with database_url, the nodes sharing
+    # the database (and the MQTT broker) are one site.
+    node_name: str = ""
+    """This node's name in its site; each node needs its own. Unset: the machine's name."""
+    node_url: str = ""
+    """How the other nodes and browsers reach this node (``http://10.0.0.5:8000``). Unset:
+    ``http://<host>:<port>``."""
+    node_cameras: int = Field(default=0, ge=0)
+    """Cameras this node runs at most (0: ``CAMERAS_PER_CORE`` per CPU core)."""
+    lease_s: float = Field(default=10.0, gt=0)
+    """A node that has not renewed its leases for this long is gone: the live nodes take its
+    cameras over. It renews three times a lease."""
+
+    @field_validator("node_name")
+    @classmethod
+    def _check_node_name(cls, value: str) -> str:
+        value = value.strip()
+        if any(c in value for c in "+#/") or any(not c.isprintable() for c in value):
+            raise ValueError("a node's name cannot contain /, +, # or control characters")
+        return value
+
+    @field_validator("node_url")
+    @classmethod
+    def _check_node_url(cls, value: str) -> str:
+        return _http_url(value)
+
     # Notifications (app/notify, docs/notifications.md).
     notify_urls: str = Field(default="", repr=False)
     """Apprise URLs, separated by spaces, each added as a notification target at start
@@ -175,10 +206,22 @@ class Settings(BaseSettings):
     @field_validator("public_url")
     @classmethod
     def _check_public_url(cls, value: str) -> str:
-        value = value.strip().rstrip("/")
-        if value and not value.lower().startswith(("http://", "https://")):
-            raise ValueError("must start with http:// or https://")
-        return value
+        return _http_url(value)
+
+    @property
+    def node(self) -> str:
+        """This node's name: ``node_name``, or the machine's."""
+        return self.node_name or socket.gethostname()
+
+    @property
+    def node_address(self) -> str:
+        """How this node is reached: ``node_url``, or ``http://<host>:<port>``."""
+        return self.node_url or f"http://{self.host}:{self.port}"
+
+    @property
+    def node_capacity(self) -> int:
+        """Cameras this node runs at most: ``node_cameras``, or ``CAMERAS_PER_CORE`` per core."""
+        return self.node_cameras or CAMERAS_PER_CORE * (os.cpu_count() or 1)
 
     @property
     def notify_url_list(self) -> list[str]:
@@ -204,6 +247,13 @@ class Settings(BaseSettings):
     @property
     def analyses_dir(self) -> Path:
         return self.data_dir / "analyses"
+
+
+def _http_url(value: str) -> str:
+    value = value.strip().rstrip("/")
+    if value and not value.lower().startswith(("http://", "https://")):
+        raise ValueError("must start with http:// or https://")
+    return value
 
 
 def _topic_prefix(value: str, what: str) -> str:

@@ -101,6 +101,9 @@ class Alarm(WsMessage):
     snapshot_id: int | None
     difference: str | None
     """URL of the difference picture (JPEG); null when the disk refused it."""
+    node: str | None = None
+    """The node that runs the camera (``VIGIL_NODE_NAME``): with several machines, any
+    node's /ws carries every node's alarms (docs/scaling.md)."""
 
 
 class MotionEnd(WsMessage):
@@ -123,6 +126,9 @@ class MotionEnd(WsMessage):
     clip_s: Number | None
     """The clip's length in seconds, from ``VIGIL_PRE_ROLL_S`` before the event's first
     moving frame to ``VIGIL_POST_ROLL_S`` after its last; null without a clip."""
+    node: str | None = None
+    """The node that runs the camera (``VIGIL_NODE_NAME``): with several machines, any
+    node's /ws carries every node's alarms (docs/scaling.md)."""
 
 
 class Progress(WsMessage):
@@ -208,6 +214,8 @@ class CameraStatus(WsMessage):
     show_mask: bool | None = None
     mask: list[list[list[Number]]] | None = None
     """Ignore zones: polygons of ``[x, y]`` fractions of the frame."""
+    pinned_to: str | None = None
+    """The only node that may run it (null: any); only after a ``PATCH`` that set it."""
 
 
 AnalysisState = Literal["queued", "running", "done", "failed"]

@@ -18,12 +18,13 @@ from __future__ import annotations
 
 import asyncio
 import contextlib
+import json
 import logging
 import os
 import socket
 import ssl
 import time
-from collections.abc import Iterable
+from collections.abc import Container, Iterable
 from dataclasses import dataclass
 from typing import Any, Protocol
 
@@ -32,7 +33,7 @@ import aiomqtt
 from app.mqtt.broker import Broker
 from app.mqtt.discovery import Discovery
 from app.mqtt.mirror import CameraInfo, Mirror, Publication, SnapshotRef
-from app.mqtt.topics import OFFLINE, Topics, parse_on_off, parse_sensitivity
+from app.mqtt.topics import OFFLINE, ONLINE, Topics, parse_on_off, parse_sensitivity
 from app.workers.bus import EventBus, Subscriber
 
 log = logging.getLogger("vigil.mqtt")
@@ -50,6 +51,7 @@ OUTBOX_LIMIT = 10_000
 is sent again instead."""
 STOP_TIMEOUT_S = 3.0
 QOS = 1
+RELAYED = ("alarm", "motion_end")
 
 
 class Control(Protocol):
@@ -76,6 +78,11 @@ class Control(Protocol):
         """Each camera's latest alarm snapshot (its id) from the database. Blocking."""
         ...
 
+    def elsewhere(self) -> Container[int]:
+        """The site's cameras that run on another node (or none yet), from memory: their
+        topics are that node's, not to be removed here."""
+        ...
+
 
 @dataclass(frozen=True)
 class _Flush:
@@ -92,14 +99,21 @@ class MqttBridge:
         discovery_prefix: str,
         control: Control,
         reconnect_max_s: float = 30.0,
+        node: str | None = None,
     ) -> None:
+        """``node``: this node's name, with several nodes on the broker: the others' alarms
+        and ``motion_end`` on it are relayed onto this node's bus, for its pages; and as
+        ``<p>/status`` is the site's, a node that hears it ``offline`` (another node's will,
+        or its clean stop) says ``online`` again while it runs."""
         self.broker = broker
+        self.node = node
         self.topics = Topics(prefix)
         discovery = Discovery(discovery_prefix, self.topics) if discovery_prefix else None
         self.mirror = Mirror(self.topics, discovery)
         self.control = control
         self.reconnect_max_s = max(reconnect_max_s, RECONNECT_MIN_S)
-        self.identifier = f"vigil-{socket.gethostname()[:32]}-{os.getpid()}"
+        # The broker drops a client when another connects with its identifier.
+        self.identifier = f"vigil-{(node or socket.gethostname())[:32]}-{os.getpid()}"
         self._bus: EventBus | None = None
         self._queue: Subscriber | None = None
         self._outbox: asyncio.Queue[Publication | _Flush] | None = None
@@ -109,6 +123,7 @@ class MqttBridge:
         self._reason = "not connected yet"
         self._since = time.time()
         self._overflowed = False
+        self._closing = False
 
     # Life -------------------------------------------------------------------------------
 
@@ -128,6 +143,7 @@ class MqttBridge:
     async def stop(self) -> None:
         """Say the cameras' events are over and Vigil is ``offline``, then disconnect (the
         broker does not send the will for a clean disconnect). Within ``STOP_TIMEOUT_S``."""
+        self._closing = True
         follow = self._tasks[0] if self._tasks else None
         if follow is not None:
             follow.cancel()
@@ -204,7 +220,7 @@ class MqttBridge:
 
     def _refresh(self) -> None:
         self._next_refresh = time.monotonic() + REFRESH_S
-        self._send(self.mirror.refresh(self.control.cameras()))
+        self._send(self.mirror.refresh(self.control.cameras(), self.control.elsewhere()))
 
     def _send(self, publications: Iterable[Publication]) -> None:
         """Queue ``publications`` for the broker, if one is connected (else the mirror's
@@ -261,7 +277,8 @@ class MqttBridge:
             clean_session=True,
         )
         async with client:
-            for topic in self.topics.subscriptions():
+            relayed = [self.topics.events(), self.topics.status] if self.node is not None else []
+            for topic in [*self.topics.subscriptions(), *relayed]:
                 await client.subscribe(topic, qos=QOS)
             # The cameras as they are now, then all of it. A camera deleted while no broker
             # was connected is removed when its retained ``active`` comes back (_take).
@@ -332,15 +349,24 @@ class MqttBridge:
 
     async def _take(self, topic: str, payload: str, retained: bool) -> None:
         """A message on a topic Vigil subscribes to: a command, or a retained ``active``
-        of a camera the broker still holds."""
+        of a camera the broker still holds; with several nodes, another node's event, or
+        the site's status."""
+        if topic == self.topics.status:
+            if payload == OFFLINE and not self._closing:  # Another node's will: not the site's.
+                self._send([Publication(self.topics.status, ONLINE)])
+            return
         parsed = self.topics.parse(topic)
         if parsed is None:
             return
         camera_id, rest = parsed
+        if rest == "event":
+            self._relay(camera_id, payload)
+            return
         if rest == "active":  # A retained state: cleared if its camera is no more.
             if retained and payload:
                 self._refresh()
-                if camera_id not in self.mirror.cameras:
+                gone = camera_id not in self.mirror.cameras
+                if gone and camera_id not in self.control.elsewhere():
                     log.info("MQTT: camera %s is gone: removing it from the broker", camera_id)
                     self._send(self.mirror.removal(camera_id))
             return
@@ -367,6 +393,24 @@ class MqttBridge:
         if not found:
             log.warning("MQTT: ignored %s: there is no camera %s", topic, camera_id)
         self._refresh()  # The new state, at once.
+
+    def _relay(self, camera_id: int, payload: str) -> None:
+        """Another node's ``alarm`` or ``motion_end`` (as on its /ws) onto this node's bus:
+        its pages show every alarm of the site. This node's own, heard back, are left out,
+        and so is anything else."""
+        try:
+            message = json.loads(payload)
+        except ValueError:
+            return
+        if (
+            not isinstance(message, dict)
+            or message.get("type") not in RELAYED
+            or message.get("camera_id") != camera_id
+            or message.get("node") in (None, self.node)
+            or self._bus is None
+        ):
+            return
+        self._bus.publish(message)
 
 
 def _text(payload: Any) -> str:

@@ -10,7 +10,7 @@ from the events open now, not a replay of what was missed).
 from __future__ import annotations
 
 import json
-from collections.abc import Iterable
+from collections.abc import Container, Iterable
 from dataclasses import dataclass, field
 from typing import Any
 
@@ -66,14 +66,18 @@ class Mirror:
 
     # The cameras ----------------------------------------------------------------------------
 
-    def refresh(self, cameras: Iterable[CameraInfo]) -> list[Publication]:
+    def refresh(
+        self, cameras: Iterable[CameraInfo], elsewhere: Container[int] = ()
+    ) -> list[Publication]:
         """Follow the cameras as they are now: added, removed, renamed, activated or
-        stopped, their sensitivity changed."""
+        stopped, their sensitivity changed. One gone ``elsewhere`` (to another node, which
+        publishes it now) is forgotten, not removed."""
         current = {info.camera_id: info for info in cameras}
         out: list[Publication] = []
         for camera_id in sorted(self.cameras.keys() - current.keys()):
             del self.cameras[camera_id]
-            out += self.removal(camera_id)
+            if camera_id not in elsewhere:
+                out += self.removal(camera_id)
         for camera_id, info in current.items():
             mirror = self.cameras.get(camera_id)
             if mirror is None:

@@ -50,6 +50,10 @@ class Topics:
         wild = f"{self.prefix}/cameras/+"
         return [*(f"{wild}/{name}/set" for name in COMMANDS), f"{wild}/active"]
 
+    def events(self) -> str:
+        """Every camera's ``event`` topic: with several nodes, each hears the others'."""
+        return f"{self.prefix}/cameras/+/event"
+
     def parse(self, topic: str) -> tuple[int, str] | None:
         """``(camera_id, rest)`` of a camera's topic (``rest``: ``active/set``, ``active``...),
         None for any other topic."""

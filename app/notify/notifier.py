@@ -264,6 +264,7 @@ class Notifier:
                 raise ValueError(f"VIGIL_NOTIFY_URLS, URL {number}: {exc}") from None
         self._workers: dict[int, TargetWorker] = {}
         self._lock = threading.Lock()
+        self._changing = threading.Lock()  # Targets added or deleted one change at a time.
         self._starts: dict[int, float] = {}  # event id -> ts of its first alarm heard
         self._db: Database | None = None
         self._snapshots: SnapshotStore | None = None
@@ -301,6 +302,21 @@ class Notifier:
         worker.start()
         return worker
 
+    def follow_targets(self) -> None:
+        """Follow the targets in the database: those another node's API added get their
+        worker here, those it deleted lose theirs (with several nodes, at each renewal)."""
+        with self._changing:
+            rows = {row["id"]: row for row in self.db.targets()}
+            with self._lock:
+                gone = [self._workers.pop(i) for i in set(self._workers) - rows.keys()]
+                new = [row for i, row in rows.items() if i not in self._workers]
+            for worker in gone:
+                worker.stop()
+                log.info("notifications: target %d deleted elsewhere: %s", worker.id, worker.shown)
+            for row in new:
+                worker = self._start_worker(row)
+                log.info("notifications: target %d added elsewhere: %s", worker.id, worker.shown)
+
     def stop(self) -> None:
         with self._lock:
             workers = list(self._workers.values())
@@ -324,7 +340,10 @@ class Notifier:
                 log.exception("notifications: a %s message not handled", message.get("type"))
 
     def handle(self, message: Wire) -> None:
-        """An ``alarm`` offered to every target; a ``motion_end`` forgets its event."""
+        """An ``alarm`` offered to every target; a ``motion_end`` forgets its event. Another
+        node's (relayed over MQTT for its pages) are that node's to send."""
+        if message.get("node") not in (None, self.settings.node):
+            return
         kind = message.get("type")
         if kind == "motion_end":
             event = message["event_id"]
@@ -383,29 +402,31 @@ class Notifier:
         DuplicateTargetError if it is a target already."""
         url = url.strip()
         Destination(url)
-        try:
-            target_id = self.db.add_target(url, cameras)
-        except IntegrityError:
-            same = next((w for w in self._listed() if w.url == url), None)
-            which = f" (target {same.id})" if same else ""
-            raise DuplicateTargetError(f"this URL is a target already{which}") from None
-        row = self.db.target(target_id)
-        assert row is not None
-        worker = self._start_worker(row)
+        with self._changing:
+            try:
+                target_id = self.db.add_target(url, cameras)
+            except IntegrityError:
+                same = next((w for w in self._listed() if w.url == url), None)
+                which = f" (target {same.id})" if same else ""
+                raise DuplicateTargetError(f"this URL is a target already{which}") from None
+            row = self.db.target(target_id)
+            assert row is not None
+            worker = self._start_worker(row)
         log.info("notifications: target %d added: %s", worker.id, worker.shown)
         return worker.view()
 
     def remove(self, target_id: int) -> bool:
         """Delete a target; False if there is none. FixedTargetError for one of
         ``VIGIL_NOTIFY_URLS``: it would be back at the next start."""
-        with self._lock:
-            worker = self._workers.get(target_id)
-            if worker is not None and worker.origin == "env":
-                raise FixedTargetError(
-                    f"target {target_id} is set by VIGIL_NOTIFY_URLS: remove it there"
-                )
-            self._workers.pop(target_id, None)
-        deleted = self.db.delete_target(target_id)
+        with self._changing:
+            with self._lock:
+                worker = self._workers.get(target_id)
+                if worker is not None and worker.origin == "env":
+                    raise FixedTargetError(
+                        f"target {target_id} is set by VIGIL_NOTIFY_URLS: remove it there"
+                    )
+                self._workers.pop(target_id, None)
+            deleted = self.db.delete_target(target_id)
         if worker is not None:
             worker.stop()
             log.info("notifications: target %d deleted: %s", worker.id, worker.shown)

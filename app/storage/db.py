@@ -64,11 +64,13 @@ CAMERA_FIELDS = (
     "show_mask",
     "active",
     "mask",
+    "pinned_to",
 )
 FLAGS = ("show_mask", "active")
 """Camera fields kept as 0 or 1."""
 ANALYSIS_FIELDS = frozenset({"status", "progress", "error", "finished_at"})
 CHUNK = 500
+FIRST_CAMERA_LOCK = 0x76696763  # "vigc": PostgreSQL's advisory lock of add_first_camera.
 """Ids per ``IN (...)`` of a long list."""
 
 
@@ -77,10 +79,14 @@ class Database:
 
     ``migrate``: bring its schema up to this release's first (the server does, at start);
     otherwise wait until it is (a camera process: the server migrates before starting one).
-    ``app.storage.migrate.SchemaError`` when it cannot be.
+    ``app.storage.migrate.SchemaError`` when it cannot be. ``node``: the node this process
+    belongs to (``VIGIL_NODE_NAME``), named by the events and snapshots it adds.
     """
 
-    def __init__(self, target: engines.Target, *, migrate: bool = True) -> None:
+    def __init__(
+        self, target: engines.Target, *, migrate: bool = True, node: str | None = None
+    ) -> None:
+        self.node = node
         self.dialect = engines.engine_name(target)
         """``sqlite`` or ``postgresql``."""
         self.shown = engines.shown(target)
@@ -163,16 +169,20 @@ class Database:
     def add_camera(
         self, name: str, source: str, method: str, min_area: float, sensitivity: float | None = None
     ) -> int:
-        return self._insert(
-            insert(cameras).values(
-                name=name,
-                source=source,
-                sensitivity=sensitivity,
-                min_area=min_area,
-                method=method,
-                created_at=time.time(),
-            )
-        )
+        return self._insert(_new_camera(name, source, method, min_area, sensitivity))
+
+    def add_first_camera(self, name: str, source: str, method: str, min_area: float) -> int | None:
+        """Add this camera if there is none at all (a fresh install's demo camera): its id,
+        or None. Of nodes starting together, one adds it: on PostgreSQL the look and the
+        insert hold a lock of their own for the transaction, as SQLite's write lock does."""
+        with self.transaction() as conn:
+            if conn.dialect.name == engines.POSTGRESQL:
+                conn.execute(select(func.pg_advisory_xact_lock(FIRST_CAMERA_LOCK)))
+            if conn.execute(select(cameras.c.id).limit(1)).first() is not None:
+                return None
+            key = conn.execute(_new_camera(name, source, method, min_area)).inserted_primary_key
+        assert key is not None
+        return int(key[0])
 
     def cameras(self) -> list[dict[str, Any]]:
         return [_camera(r) for r in self._rows(select(cameras).order_by(cameras.c.id))]
@@ -222,6 +232,7 @@ class Database:
                 boxes=json.dumps(boxes),
                 max_area=max_area,
                 track_ids=json.dumps(list(track_ids)),
+                node=self.node,
             )
         )
 
@@ -287,7 +298,13 @@ class Database:
     ) -> int:
         return self._insert(
             insert(snapshots).values(
-                camera_id=camera_id, event_id=event_id, ts=ts, kind=kind, path=path, size=size
+                camera_id=camera_id,
+                event_id=event_id,
+                ts=ts,
+                kind=kind,
+                path=path,
+                size=size,
+                node=self.node,
             )
         )
 
@@ -470,8 +487,12 @@ class Database:
             conn.execute(update(events).where(events.c.id == event_id).values(**values))
 
     def unfinished_clips(self, camera_id: int | None = None) -> list[dict[str, Any]]:
-        """Events whose clip was being recorded when its camera's process ended."""
+        """Events whose clip was being recorded when its camera's process ended: of those
+        whose file is on this node's disk (made by ``node``, or before nodes), when it has one.
+        Another node's stay as they are until that node finishes them at its start."""
         query = select(events).where(events.c.clip_path.is_not(None), events.c.clip_s.is_(None))
+        if self.node is not None:
+            query = query.where(events.c.node.is_(None) | (events.c.node == self.node))
         if camera_id is not None:
             query = query.where(events.c.camera_id == camera_id)
         return [_event(r) for r in self._rows(query.order_by(events.c.id))]
@@ -681,6 +702,19 @@ def _chunks(ids: Iterable[int]) -> Iterator[list[int]]:
     valid = [i for i in ids if _is_row_id(i)]
     for start in range(0, len(valid), CHUNK):
         yield valid[start : start + CHUNK]
+
+
+def _new_camera(
+    name: str, source: str, method: str, min_area: float, sensitivity: float | None = None
+) -> Insert:
+    return insert(cameras).values(
+        name=name,
+        source=source,
+        sensitivity=sensitivity,
+        min_area=min_area,
+        method=method,
+        created_at=time.time(),
+    )
 
 
 def _camera(row: dict[str, Any]) -> dict[str, Any]:

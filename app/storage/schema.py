@@ -39,6 +39,10 @@ cameras = Table(
     Column("active", Integer, nullable=False, server_default="0"),
     Column("created_at", FLOAT64, nullable=False),
     Column("mask", Text, nullable=False, server_default="[]"),
+    # Its lease (app/nodes/leases.py): the node running it, until when unless renewed.
+    Column("node", Text),
+    Column("lease_until", FLOAT64),
+    Column("pinned_to", Text),  # The only node that may run it (a USB camera's), or null.
     sqlite_autoincrement=True,
 )
 
@@ -59,6 +63,7 @@ events = Table(
     Column("clip_s", FLOAT64),  # Null while the clip is being recorded.
     Column("clip_started_at", FLOAT64),  # The wall time of its first frame.
     Column("clip_error", Text),
+    Column("node", Text),  # The node that made it and holds its clip; null: from before nodes.
     Index("events_camera_time", "camera_id", "started_at"),
     Index("events_time", "started_at"),
     Index(
@@ -86,6 +91,7 @@ snapshots = Table(
     Column("kind", Text, nullable=False, server_default="frame"),
     Column("path", Text, nullable=False),
     Column("size", INT64, nullable=False, server_default="0"),
+    Column("node", Text),  # The node whose disk holds the file; null: from before nodes.
     Index("snapshots_camera_time", "camera_id", "ts"),
     Index("snapshots_time", "ts"),
     Index("snapshots_event", "event_id"),
@@ -142,4 +148,16 @@ activity = Table(
     Column("ts", INT64, primary_key=True, autoincrement=False),
     Column("motion", FLOAT64, nullable=False),
     sqlite_with_rowid=False,
+)
+
+# The nodes of a site (app/nodes/): each renews its row with its leases; one whose
+# renewed_at is older than VIGIL_LEASE_S is gone. load: its cameras over its capacity.
+nodes = Table(
+    "nodes",
+    metadata,
+    Column("name", Text, primary_key=True),
+    Column("url", Text, nullable=False, server_default=""),
+    Column("capacity", INT64, nullable=False),
+    Column("load", FLOAT64, nullable=False, server_default="0"),
+    Column("renewed_at", FLOAT64, nullable=False),
 )

@@ -502,6 +502,7 @@ class CameraWorker:
                 snapshot=urls.get("frame"),
                 snapshot_id=ids.get("frame"),
                 difference=urls.get("difference"),
+                node=self.settings.node,
             )
         )
 
@@ -530,6 +531,7 @@ class CameraWorker:
                 event.max_area,
                 clip,
                 clip_s,
+                node=self.settings.node,
             )
         )
 
@@ -630,10 +632,11 @@ def motion_end_message(
     max_area: float,
     clip: str | None = None,
     clip_s: float | None = None,
+    node: str | None = None,
 ) -> MotionEnd:
     """The ``motion_end`` message on /ws: an event of a camera ended at ``ts``; its clip's
-    URL and length, if it has one."""
-    return MotionEnd(
+    URL and length, if it has one; ``node``: the node that ended it."""
+    message = MotionEnd(
         camera_id=camera_id,
         event_id=event_id,
         ts=ts,
@@ -642,6 +645,8 @@ def motion_end_message(
         clip=clip,
         clip_s=None if clip_s is None else round(clip_s, 3),
     )
+    # Unset, it is left out of the wire form.
+    return message if node is None else message.model_copy(update={"node": node})
 
 
 def _alarm_object(d: Detection) -> AlarmObject:

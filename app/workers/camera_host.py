@@ -122,7 +122,7 @@ def run_cameras(conn: Connection, settings: Settings, live_conn: Connection | No
 
     threading.Thread(target=warm, name="warm-up", daemon=True).start()
     link = Link(conn)
-    db = Database(settings.database, migrate=False)  # The server has migrated it.
+    db = Database(settings.database, migrate=False, node=settings.node)  # Migrated already.
     snapshots = SnapshotStore(settings.snapshots_dir)
     clips = ClipStore(settings.clips_dir)
     sender = FrameSender(link, LivePipeWriter(live_conn) if live_conn is not None else None)
@@ -146,7 +146,9 @@ def run_cameras(conn: Connection, settings: Settings, live_conn: Connection | No
                 row, generation, recovering = args
                 remove(row["id"])
                 worker_link = _WorkerLink(link, generation)
-                if recovering:  # The process before this one died with its events open.
+                # The process before this one, or the node before this one, died with its
+                # events open.
+                if recovering:
                     _end_events(db, worker_link, row["id"], clips)
                 sender.start(row["id"], generation)
                 worker = CameraWorker(row, settings, db, snapshots, worker_link)
@@ -175,8 +177,8 @@ def run_cameras(conn: Connection, settings: Settings, live_conn: Connection | No
 def _end_events(
     db: Database, link: _WorkerLink, camera_id: int, clips: ClipStore | None = None
 ) -> None:
-    """The camera's process died: its open events end, and its clips being recorded are
-    finished as far as they got."""
+    """The camera's process (or node) died: its open events end, and its clips being
+    recorded are finished as far as they got (those on this node's disk)."""
     if clips is not None:
         finish_unfinished(db, clips, camera_id)
     for event in db.close_open_events(camera_id):
@@ -191,6 +193,7 @@ def _end_events(
                 event["max_area"],
                 clip,
                 event["clip_s"] if clip else None,
+                node=db.node,
             )
         )
 
@@ -320,12 +323,13 @@ class CameraProcess:
     def started(self) -> bool:
         return self._process is not None
 
-    def add(self, camera: RemoteCamera) -> None:
+    def add(self, camera: RemoteCamera, recovering: bool = False) -> None:
+        """Run ``camera`` here; ``recovering``: its open events (and clips) are ended first."""
         if not self.started:
             self.start()
         with self._lock:
             self.cameras[camera.camera_id] = camera
-            self._send_locked(camera.start_command())
+            self._send_locked(camera.start_command(recovering))
 
     def remove(self, camera_id: int) -> None:
         with self._lock:

@@ -29,12 +29,13 @@ class CameraManager:
         for camera in cameras:
             self.start(camera)
 
-    def start(self, camera: dict[str, Any]) -> RemoteCamera:
+    def start(self, camera: dict[str, Any], taken_over: bool = False) -> RemoteCamera:
         """Run a camera (again, with its new row, if it runs already) in the least busy process.
 
         A process starts with its first camera: cameras spread one to a process up to
         the number of processes, and a server with fewer cameras than CPUs does not
-        keep idle processes (tens of MB each).
+        keep idle processes (tens of MB each). ``taken_over``: from a node that died, whose
+        open events this one ends first (``motion_end``), as after a camera process's death.
         """
         with self._changing:  # Two PATCHes of one camera must not leave two workers.
             self.remove(camera["id"])
@@ -42,8 +43,14 @@ class CameraManager:
             remote = RemoteCamera(camera, process)
             with self._lock:
                 self._cameras[camera["id"]] = remote
-            process.add(remote)
+            process.add(remote, recovering=taken_over)
             return remote
+
+    @property
+    def changing(self) -> threading.RLock:
+        """Held while cameras start or stop, and while a camera's row and its worker change
+        together: one change at a time."""
+        return self._changing
 
     def get(self, camera_id: int) -> RemoteCamera | None:
         with self._lock:

@@ -14,6 +14,7 @@ import httpx
 import psycopg
 import pytest
 
+from app.storage import migrate
 from tests.api.vigil_livekit import (
     ROOT,
     WsClient,
@@ -46,7 +47,7 @@ def test_activate_alarm_event_snapshot_and_clip_live_in_postgresql(
         assert postgres.password not in health.text
         said = [r.getMessage() for r in caplog.records]
         assert f"database: postgresql, {postgres_url.replace(postgres.password, '***')}" in said
-        assert "database: schema migrated from none to 0001" in said
+        assert f"database: schema migrated from none to {migrate.head()}" in said
         assert not [line for line in said if postgres.password in line]
         camera = add_camera(server.base, f"file://{video}", "door", activate=True)
         alarm = ws.wait("alarm", 30, camera_id=camera)[0]

@@ -191,31 +191,38 @@ def watch_analysis_live(server: Running, page: Any, analysis_id: str = "a1") -> 
 
 @contextmanager
 def serve_process(
-    data_dir: Path, own_group: bool = False, **env: str
+    data_dir: Path, own_group: bool = False, log: Path | None = None, port: int = 0, **env: str
 ) -> Iterator[tuple[subprocess.Popen[str], str]]:
-    """``vigil serve`` as its own process on a free port, answering; ``env`` adds variables.
+    """``vigil serve`` as its own process on ``port`` (0: a free one), answering; ``env``
+    adds variables.
 
-    Yields the process (stdout and stderr together, as text) and its base URL; killed at
-    the end if still running. ``own_group``: in a process group of its own (with its
-    camera processes), to be signalled as a service manager does.
+    Yields the process (stdout and stderr together, as text, or into the file ``log``, for
+    a long run nobody reads as it goes) and its base URL; killed at the end if still
+    running. ``own_group``: in a process group of its own (with its camera processes), to
+    be signalled as a service manager does.
     """
-    sock = free_socket()
-    port = sock.getsockname()[1]
-    sock.close()
+    if not port:
+        sock = free_socket()
+        port = sock.getsockname()[1]
+        sock.close()
+    output = log.open("a") if log is not None else subprocess.PIPE
     process = subprocess.Popen(
         [sys.executable, "-m", "app", "serve", "--port", str(port), "--data", str(data_dir)],
         cwd=ROOT,
         env={**os.environ, "PYTHONPATH": str(ROOT), **env},
-        stdout=subprocess.PIPE,
+        stdout=output,
         stderr=subprocess.STDOUT,
         text=True,
         start_new_session=own_group,
     )
+    if log is not None:
+        output.close()  # type: ignore[union-attr]
     base = f"http://127.0.0.1:{port}"
 
     def healthy() -> bool:
         if process.poll() is not None:
-            raise AssertionError(f"vigil serve exited: {process.stdout.read()}")  # type: ignore[union-attr]
+            said = log.read_text()[-3000:] if log is not None else process.stdout.read()  # type: ignore[union-attr]
+            raise AssertionError(f"vigil serve exited: {said}")
         try:
             return httpx.get(f"{base}/api/health", timeout=1).status_code == 200
         except httpx.HTTPError:

@@ -49,6 +49,7 @@ def test_motion_end_and_alarm_objects_keep_their_keys_and_rounding() -> None:
     clipped = motion_end_message(3, 7, 1.0, 2.0, 3.0, "/api/events/7/clip.mp4", 7.12345)
     assert clipped.wire()["clip"] == "/api/events/7/clip.mp4"
     assert clipped.wire()["clip_s"] == 7.123
+    assert motion_end_message(3, 7, 1.0, 2.0, 3.0, node="north").wire()["node"] == "north"
     tracked = Detection(Box(1, 2, 30, 40), (16.0, 22.0), 1200, 0, 5, 3.14159, 47.123)
     assert _alarm_object(tracked).model_dump() == {
         "track_id": 5,

@@ -1,5 +1,4 @@
-"""The storage tests run on both databases: ``db_target`` is where a fresh one is, a SQLite
-file or a PostgreSQL database of its own (skipped where PostgreSQL cannot be run)."""
+"""The storage tests run on both databases (``db_target``, in tests/conftest.py)."""
 
 from __future__ import annotations
 
@@ -8,17 +7,8 @@ import sqlite3
 from pathlib import Path
 
 import psycopg
-import pytest
 
 from app.storage.engine import Target
-
-
-@pytest.fixture(params=["sqlite", "postgresql"])
-def db_target(request: pytest.FixtureRequest, tmp_path: Path) -> Target:
-    if request.param == "sqlite":
-        return tmp_path / "v.db"
-    url: str = request.getfixturevalue("postgres_url")
-    return url
 
 
 def raw_rows(target: Target, sql: str) -> list[tuple[object, ...]]:

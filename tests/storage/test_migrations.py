@@ -18,11 +18,13 @@ from typing import Any
 
 import psycopg
 import pytest
+from alembic import command
 from alembic.autogenerate import compare_metadata
 from alembic.runtime.migration import MigrationContext
 from sqlalchemy import select, text
 
 from app.storage import Database, migrate
+from app.storage import engine as engines
 from app.storage.engine import Target
 from app.storage.schema import cameras, metadata
 from tests.storage.conftest import raw_rows
@@ -39,12 +41,13 @@ TABLES = (
     "analyses",
     "notification_targets",
     "activity",
+    "nodes",
 )
 
 
-def _dump(target: Target) -> dict[str, list[tuple[object, ...]]]:
+def _dump(target: Target, tables: tuple[str, ...] = TABLES) -> dict[str, list[tuple[object, ...]]]:
     """Every row of every table, as the database's own driver reads them."""
-    return {table: sorted(raw_rows(target, f"SELECT * FROM {table}"), key=repr) for table in TABLES}
+    return {table: sorted(raw_rows(target, f"SELECT * FROM {table}"), key=repr) for table in tables}
 
 
 def _schema(target: Target) -> list[tuple[object, ...]]:
@@ -89,13 +92,22 @@ def test_a_database_from_before_migrations_upgrades_in_place_with_every_row(
 ) -> None:
     path = tmp_path / "vigil.db"
     shutil.copy(BEFORE, path)
-    before = _dump(path)
+    old_tables = TABLES[:-1]  # No nodes then.
+    before = _dump(path, old_tables)
     assert before["events"] and before["snapshots"] and before["activity"]
 
     db = Database(path)
 
     assert db.revision == migrate.head()
-    assert _dump(path) == before, "every row as it was"
+    # Every row as it was, the columns added since null (no node, no lease, no pin).
+    added = {"cameras": 3, "events": 1, "snapshots": 1}
+    after = _dump(path, old_tables)
+    assert {t: [r[: len(r) - added.get(t, 0)] for r in rows] for t, rows in after.items()} == before
+    assert {r[len(r) - n :] for t, n in added.items() for r in after[t]} == {
+        (None,),
+        (None, None, None),
+    }
+    assert _dump(path, ("nodes",)) == {"nodes": []}
     assert sorted(p.name for p in tmp_path.iterdir() if p.suffix == ".db") == ["vigil.db"]
     assert _differences(db) == []
     door, yard = db.cameras()
@@ -125,6 +137,47 @@ def test_a_database_from_before_migrations_upgrades_in_place_with_every_row(
     again = Database(path)
     assert again.revision == migrate.head() and again.snapshot_bytes() == 80_458
     again.close()
+
+
+def test_a_database_of_the_first_schema_gains_nodes_leases_and_pins(db_target: Target) -> None:
+    """Upgraded from 0001 with its rows: they name no node (made before nodes); what is
+    added from then on names the node that made it."""
+    engine = engines.create(db_target)
+    with engines.writer(engine).begin() as conn:
+        cfg = migrate.config()
+        cfg.attributes["connection"] = conn
+        command.upgrade(cfg, "0001")
+        conn.execute(
+            text(
+                "INSERT INTO cameras (name, source, method, created_at)"
+                " VALUES ('door', 'demo', 'adaptive', 1)"
+            )
+        )
+        conn.execute(text("INSERT INTO events (camera_id, started_at) VALUES (1, 2)"))
+        conn.execute(text("INSERT INTO snapshots (camera_id, ts, path) VALUES (1, 2, 'old.jpg')"))
+    engine.dispose()
+
+    db = Database(db_target, node="north")
+
+    assert db.revision == migrate.head() == "0002"
+    assert _differences(db) == []
+    door = db.camera(1)
+    assert door is not None
+    assert (door["name"], door["node"], door["lease_until"], door["pinned_to"]) == (
+        "door",
+        None,
+        None,
+        None,
+    )
+    (old_event,) = db.events()
+    (old_snapshot,) = db.snapshots()
+    assert old_event["node"] is None and old_snapshot["node"] is None
+    event = db.add_event(1, 3.0, [], 10.0)
+    snapshot = db.add_snapshot(1, event, 3.0, "frame", "new.jpg", 5)
+    assert db.event(event)["node"] == "north"  # type: ignore[index]
+    assert db.snapshot(snapshot)["node"] == "north"  # type: ignore[index]
+    assert db.update_camera(1, pinned_to="north")["pinned_to"] == "north"  # type: ignore[index]
+    db.close()
 
 
 def test_a_fresh_database_gets_the_schema_of_the_tables(db_target: Target) -> None:

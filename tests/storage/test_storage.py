@@ -5,7 +5,9 @@ from __future__ import annotations
 import io
 import sqlite3
 import sys
+import threading
 import zipfile
+from concurrent.futures import ThreadPoolExecutor
 from pathlib import Path
 
 import pytest
@@ -28,6 +30,28 @@ def test_database_is_wal_and_cameras_round_trip(tmp_path: Path, db_target: Targe
     assert row["active"] is True and row["show_mask"] is True
     assert again.delete_camera(cam) and again.cameras() == []
     again.close()
+
+
+def test_of_nodes_starting_together_into_an_empty_database_one_adds_the_demo(
+    db_target: Target,
+) -> None:
+    """Four processes (here: four Database objects, their own connections) at the same
+    moment, again and again: one demo camera each time, never two; none once there is one."""
+    nodes = [Database(db_target) for _ in range(4)]
+    start = threading.Barrier(len(nodes))
+
+    def add(db: Database) -> int | None:
+        start.wait(10)
+        return db.add_first_camera("demo", "demo", "adaptive", 100.0)
+
+    with ThreadPoolExecutor(len(nodes)) as pool:
+        for _ in range(30):
+            added = [i for i in pool.map(add, nodes) if i is not None]
+            assert len(added) == 1 and [c["id"] for c in nodes[0].cameras()] == added
+            assert nodes[1].add_first_camera("demo", "demo", "adaptive", 100.0) is None
+            nodes[2].delete_camera(added[0])
+    for db in nodes:
+        db.close()
 
 
 def test_a_closed_database_refuses_to_be_used(db_target: Target) -> None:

@@ -165,3 +165,22 @@ def test_clips_a_kill_left_unfinished_are_cut_to_what_plays(
         assert dropped["clip_error"] == KILLED
     assert again.unfinished_clips() == []
     assert finish_unfinished(again, clips) == 0
+
+
+def test_a_node_finishes_only_the_unfinished_clips_on_its_own_disk(
+    tmp_path: Path, db_target: Target
+) -> None:
+    """A node that takes over a dead node's camera cannot reach that node's disk: the clip
+    it was recording stays as it is, for its own node to finish when it is back."""
+    north, south = Database(db_target, node="north"), Database(db_target, node="south")
+    theirs = _ended(north, 1, 100.0)
+    north.start_clip(theirs, "1/north.mp4", 99.0)  # Killed while recording it.
+    ours = _ended(south, 1, 200.0)
+    south.start_clip(ours, "1/south-never-written.mp4", 199.0)
+
+    assert finish_unfinished(south, ClipStore(tmp_path / "south")) == 1
+    assert south.event(ours)["clip_error"] == KILLED  # type: ignore[index]
+    assert [e["id"] for e in south.unfinished_clips()] == []
+    assert [e["id"] for e in north.unfinished_clips()] == [theirs]
+    north.close()
+    south.close()

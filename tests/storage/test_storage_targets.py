@@ -21,7 +21,13 @@ def test_a_database_from_before_notifications_gains_the_targets_table(tmp_path: 
     old = sqlite3.connect(path)  # As a release before notifications left it.
     old.execute("DROP INDEX notification_targets_url")
     old.execute("DROP TABLE notification_targets")
-    old.execute("DROP TABLE alembic_version")  # Nor had it migrations.
+    old.execute("DROP TABLE alembic_version")  # Nor had it migrations,
+    old.execute("DROP TABLE nodes")  # nor nodes.
+    for table, column in [("cameras", c) for c in ("node", "lease_until", "pinned_to")] + [
+        ("events", "node"),
+        ("snapshots", "node"),
+    ]:
+        old.execute(f"ALTER TABLE {table} DROP COLUMN {column}")
     old.commit()
     old.close()
 

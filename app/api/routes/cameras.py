@@ -86,8 +86,11 @@ class CameraPatch(BaseModel):
     show_mask: bool | None = None
     mask: Zones | None = Field(default=None, max_length=64)
     """Ignore zones: polygons of [x, y] fractions of the frame; null or [] clears them."""
+    pinned_to: str | None = Field(default=None, min_length=1, max_length=100)
+    """The only node that may run the camera (a USB camera's); null: any node."""
 
     _name = field_validator("name")(_check_text)
+    _pinned_to = field_validator("pinned_to")(_check_text)
     _method = field_validator("method")(_check_method)
     _min_area = field_validator("min_area")(check_min_area)
 
@@ -126,7 +129,7 @@ def add_camera(request: Request, body: CameraIn) -> dict[str, Any]:
     camera = svc.database.camera(camera_id)
     if camera is None:  # Deleted by another request in the meantime.
         raise HTTPException(404, f"no camera {camera_id}")
-    svc.cameras.start(camera)
+    svc.add_camera(camera)
     return {"id": camera_id}
 
 
@@ -158,8 +161,7 @@ def change_camera(request: Request, camera_id: int, body: CameraPatch) -> dict[s
 def delete_camera(request: Request, camera_id: int) -> Response:
     svc = services(request)
     _camera_or_404(request, camera_id)
-    svc.cameras.remove(camera_id)
-    svc.database.delete_camera(camera_id)
+    svc.delete_camera(camera_id)
     return Response(status_code=204)
 
 

@@ -60,6 +60,7 @@ def iou(a: list[int], b: tuple[int, int, int, int]) -> float:
     return inter / (a[2] * a[3] + b[2] * b[3] - inter)
 
 
+@pytest.mark.own_process  # Its rate needs the machine as a user's: see the Makefile.
 def test_sixteen_cameras_on_a_wall_each_at_its_rate_with_boxes_on_the_moving_object(
     serve: Callable[..., Running], page: Any, motion_video: Path
 ) -> None:

@@ -17,6 +17,7 @@ from sqlalchemy import update
 from app.storage import Database
 from app.storage.schema import cameras
 from tests.api.vigil_livekit import (
+    Running,
     WsClient,
     add_camera,
     live_settings,
@@ -48,6 +49,21 @@ def _live(base: str) -> list[int]:
     return sorted(c["id"] for c in httpx.get(f"{base}/api/cameras").json() if c["state"] == "live")
 
 
+def _spread_evenly(north: Running, south: Running, ids: list[int]) -> dict[str, list[int]]:
+    """Node name -> the cameras it runs live, once ``ids`` run half on each."""
+    each = len(ids) // 2
+    return wait_for(
+        lambda: (
+            (r := {"north": _live(north.base), "south": _live(south.base)})
+            and sorted(r["north"] + r["south"]) == ids
+            and len(r["north"]) == len(r["south"]) == each
+            and r
+        ),
+        30,
+        f"{each} camera(s) live on each node",
+    )
+
+
 def test_two_nodes_run_each_camera_once_and_its_activation_and_pin_follow_it(
     postgres_url: str, tmp_path: Path
 ) -> None:
@@ -60,16 +76,7 @@ def test_two_nodes_run_each_camera_once_and_its_activation_and_pin_follow_it(
         WsClient(south.ws) as south_ws,
     ):
         ids = [add_camera(north.base, f"file://{video}", f"cam{i}") for i in range(4)]
-        running = wait_for(
-            lambda: (
-                (r := {"north": _live(north.base), "south": _live(south.base)})
-                and sorted(r["north"] + r["south"]) == ids
-                and len(r["north"]) == len(r["south"]) == 2
-                and r
-            ),
-            30,
-            "two cameras live on each node",
-        )
+        running = _spread_evenly(north, south, ids)
         for server in (north, south):  # Both say where each camera runs.
             shown = {c["id"]: c["node"] for c in httpx.get(f"{server.base}/api/cameras").json()}
             assert shown == {i: n for n, held in running.items() for i in held}
@@ -168,16 +175,7 @@ def test_every_node_shows_every_alarm_and_only_the_cameras_node_notifies(
             WsClient(south.ws) as south_ws,
         ):
             ids = [add_camera(north.base, f"file://{video}", f"cam{i}") for i in range(2)]
-            running = wait_for(
-                lambda: (
-                    (r := {"north": _live(north.base), "south": _live(south.base)})
-                    and sorted(r["north"] + r["south"]) == ids
-                    and len(r["north"]) == 1
-                    and r
-                ),
-                30,
-                "one camera live on each node",
-            )
+            running = _spread_evenly(north, south, ids)
             for camera in ids:
                 httpx.post(f"{north.base}/api/cameras/{camera}/activate").raise_for_status()
             for name, ws in (("north", north_ws), ("south", south_ws)):

@@ -68,6 +68,8 @@ def create_app(settings: Settings | None = None) -> FastAPI:
             if mqtt is not None:  # Its events end and it says offline, then the cameras stop.
                 await mqtt.stop()
             await asyncio.to_thread(services.stop)  # Closes the bus: the notifier's end.
+            if services.relay is not None:
+                await services.relay.close()
             notifying.cancel()
             with contextlib.suppress(asyncio.CancelledError):
                 await notifying
@@ -87,7 +89,7 @@ def create_app(settings: Settings | None = None) -> FastAPI:
     # then the login check, so a stranger gets 401 rather than 413 for a big upload.
     application.add_middleware(BodyLimit, upload_limit=settings.max_upload_mb * 1024 * 1024)
     if access is not None:
-        application.add_middleware(AccessControl, access=access)
+        application.add_middleware(AccessControl, access=access, relay_token=services.relay_token)
     application.add_middleware(CrossOriginGuard)
     docs = (application.docs_url, application.redoc_url, application.swagger_ui_oauth2_redirect_url)
     application.add_middleware(SecurityHeaders, loose_paths=docs)

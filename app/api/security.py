@@ -31,6 +31,7 @@ from starlette.responses import JSONResponse, RedirectResponse, Response
 from starlette.types import ASGIApp, Message, Receive, Scope, Send
 
 from app.core.config import Settings
+from app.nodes.relay import RELAY_HEADER
 
 SESSION_COOKIE = "vigil_session"
 
@@ -259,7 +260,8 @@ async def _close_websocket(send: Send) -> None:
 
 
 class AccessControl:
-    """Needs a session cookie or HTTP basic auth with the password, except on open paths.
+    """Needs a session cookie or HTTP basic auth with the password, except on open paths;
+    or, from another node of the site relaying, this node's ``relay_token`` (``app.nodes.relay``).
 
     Without either: a page redirects to /login (303), an API call or a stream is 401 JSON,
     /ws is closed with 1008 before it is accepted.
@@ -267,9 +269,10 @@ class AccessControl:
 
     OPEN = frozenset({"/api/health", "/login", "/api/login", "/api/logout", "/favicon.ico"})
 
-    def __init__(self, app: ASGIApp, access: Access) -> None:
+    def __init__(self, app: ASGIApp, access: Access, relay_token: str = "") -> None:
         self.app = app
         self.access = access
+        self.relay_token = relay_token.encode()
 
     async def __call__(self, scope: Scope, receive: Receive, send: Send) -> None:
         path = scope.get("path", "")
@@ -278,6 +281,9 @@ class AccessControl:
             or path in self.OPEN
             or path.startswith("/static/")
         ):
+            await self.app(scope, receive, send)
+            return
+        if self._from_a_node(scope):
             await self.app(scope, receive, send)
             return
         connection = HTTPConnection(scope)
@@ -294,6 +300,12 @@ class AccessControl:
             await _close_websocket(send)
         else:
             await refusal(scope, receive, send)
+
+    def _from_a_node(self, scope: Scope) -> bool:
+        shown = _header(scope, RELAY_HEADER.encode())
+        return bool(self.relay_token) and hmac.compare_digest(
+            (shown or "").encode("latin-1"), self.relay_token
+        )
 
     def _ending_with_session(self, token: str, send: Send) -> Send:
         """A stream or a socket lasts as long as its session: logging out ends it."""

@@ -5,12 +5,14 @@ from __future__ import annotations
 
 import asyncio
 import logging
+import secrets
 import shutil
 import threading
 import time
+from pathlib import Path
 from typing import Any, cast
 
-from fastapi import HTTPException, Request
+from fastapi import HTTPException
 from starlette.requests import HTTPConnection
 
 from app.core.config import Settings
@@ -20,6 +22,7 @@ from app.mqtt.broker import Broker
 from app.mqtt.mirror import CameraInfo
 from app.nodes.keeper import NodeKeeper
 from app.nodes.leases import Leases, Node, site
+from app.nodes.relay import Relay
 from app.notify.notifier import Notifier
 from app.sources.live import without_password
 from app.storage.clips import ClipStore, finish_unfinished
@@ -29,7 +32,6 @@ from app.vision.motion import DEFAULT_METHOD
 from app.workers.analysis import AnalysisLimits, AnalysisManager
 from app.workers.bus import EventBus
 from app.workers.camera import STATUS_FIELDS
-from app.workers.camera_host import Camera
 from app.workers.manager import CameraManager
 
 log = logging.getLogger("vigil")
@@ -54,6 +56,10 @@ class Services:
         """Without a shared database this node is alone: it runs every camera, as always.
         With one, it runs those it leases (``keeper``)."""
         self.keeper: NodeKeeper | None = None
+        self.relay_token = secrets.token_urlsafe(32)
+        """What the site's other nodes show this one to be relayed its pictures and files."""
+        self.relay: Relay | None = None
+        """Asks the other nodes for what they hold (with a shared database)."""
         self._analyses: AnalysisManager | None = None
         self._stopping = threading.Event()
         self._pruner: threading.Thread | None = None
@@ -127,7 +133,10 @@ class Services:
         if self.alone:
             self._cameras.start_all(self.db.cameras())
         else:
-            node = Node(settings.node, settings.node_address, settings.node_capacity)
+            node = Node(
+                settings.node, settings.node_address, settings.node_capacity, self.relay_token
+            )
+            self.relay = Relay(self.db, node.name, self.relay_token, settings.lease_s)
             leases = Leases(self.db, node, settings.lease_s)
             # The notification targets another node's API changed follow too.
             follow = self.notifier.follow_targets
@@ -201,6 +210,26 @@ class Services:
                 "alive": True,
             }
         ]
+
+    def node_of(self, camera_id: int) -> str | None:
+        """The other node that runs the camera (as this node's last renewal read it); None
+        when it runs here or nowhere, or there is no other node. 404 for no such camera."""
+        if self.cameras.get(camera_id) is not None or self.keeper is None:
+            return None
+        placement = self.keeper.placement
+        if camera_id not in placement:
+            raise HTTPException(404, f"no camera {camera_id}")
+        node = placement[camera_id]
+        return None if node in (None, self.settings.node) else node
+
+    def holder(self, row: dict[str, Any], path: Path) -> str | None:
+        """The other node to ask for a file (a snapshot's or a clip's, of ``row``) that is
+        not here at ``path``: the node that made it. None: ask none (it is here, or was
+        made by this node or before there were nodes)."""
+        node = row.get("node")
+        if self.alone or path.is_file() or node in (None, self.settings.node):
+            return None
+        return str(node)
 
     def storage(self) -> dict[str, Any]:
         """Free space, the snapshots' and clips' totals and cap, and why snapshots or clips
@@ -286,21 +315,29 @@ class Services:
         if self.keeper is not None:  # Its node (this one, or another at its next renewal)
             self.keeper.wake()  # follows the row; a new pin moves it.
         view = self.camera_view(camera)
-        # Every page shows the change at once, not at its next listing of the cameras.
+        # Every page shows the change at once, not at its next listing of the cameras; of a
+        # camera no node runs now (or whose node did not answer), at that listing.
         status = {key: view[key] for key in STATUS_FIELDS if key in view}
-        changed = {key: view[key] for key in changes}
-        self.bus.publish(CameraStatus(**{"camera_id": camera_id, **status, **changed}))
+        if status.keys() == set(STATUS_FIELDS) - {"camera_id"}:
+            changed = {key: view[key] for key in changes}
+            self.bus.publish(CameraStatus(**{"camera_id": camera_id, **status, **changed}))
         return view
 
-    def camera_view(self, camera: dict[str, Any]) -> dict[str, Any]:
+    def camera_view(self, camera: dict[str, Any], ask_others: bool = True) -> dict[str, Any]:
         """A camera as the API shows it: its settings (the source ``without_password``), its
-        live state and its URLs."""
+        live state and its URLs. The state of a camera another node runs is that node's
+        (``ask_others``: asked of it; else only said to run there)."""
         worker = self.cameras.get(camera["id"])
         node = self.settings.node if self.alone else camera["node"]
+        remote = None
+        if worker is None and node not in (None, self.settings.node) and ask_others:
+            remote = self.relay.statuses(node).get(camera["id"]) if self.relay else None
         if worker is not None:
             status = worker.status()
         elif node is None or node == self.settings.node:
             status = {"state": "stopped", "reason": "", "fps": 0.0}
+        elif remote is not None:
+            status = {key: remote[key] for key in STATUS_FIELDS if key in remote}
         else:
             status = {"state": "stopped", "reason": f"runs on node {node}", "fps": 0.0}
         status.pop("camera_id", None)
@@ -371,10 +408,3 @@ class MqttControl:
 
 def services(request: HTTPConnection) -> Services:
     return cast(Services, request.app.state.services)
-
-
-def worker_or_404(request: Request, camera_id: int) -> Camera:
-    worker = services(request).cameras.get(camera_id)
-    if worker is None:
-        raise HTTPException(404, f"no camera {camera_id}")
-    return worker

@@ -48,6 +48,8 @@ class NodeKeeper:
         self._thread = threading.Thread(target=self._run, name="leases", daemon=True)
         self.site: frozenset[int] = frozenset()
         """Every camera of the site, as the last renewal read them."""
+        self.placement: dict[int, str | None] = {}
+        """Each camera of the site and the node that holds it, as the last renewal read them."""
 
     def start(self) -> None:
         """Renew once now (the server answers with its cameras running), then every period."""
@@ -76,6 +78,7 @@ class NodeKeeper:
         with self.cameras.changing:  # Not while the API changes a row and its worker.
             every = self.db.cameras()
             self.site = frozenset(r["id"] for r in every)
+            self.placement = {r["id"]: r["node"] for r in every}
             self._place({r["id"]: r for r in every if r["id"] in held})
         self.also()
 

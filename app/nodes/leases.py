@@ -51,6 +51,8 @@ class Node:
     url: str
     capacity: int
     """Cameras it runs at most (``VIGIL_NODE_CAMERAS``), at least 1."""
+    relay_token: str = ""
+    """What the other nodes show it to be relayed its pictures and files (app.nodes.relay)."""
 
 
 class Leases:
@@ -73,7 +75,7 @@ class Leases:
         me = self.node.name
         c = cameras.c
         with self.db.transaction() as conn:
-            now = float(conn.execute(select(_Now())).scalar_one())
+            now = float(conn.execute(select(DatabaseNow())).scalar_one())
             self._say_alive(conn, now, load=None)
             # A camera pinned to another node meanwhile goes, for that node to claim.
             conn.execute(
@@ -116,9 +118,19 @@ class Leases:
         node = self.node
         dialect = postgresql if conn.dialect.name == POSTGRESQL else sqlite
         statement = dialect.insert(nodes).values(
-            name=node.name, url=node.url, capacity=node.capacity, renewed_at=now, load=load or 0.0
+            name=node.name,
+            url=node.url,
+            capacity=node.capacity,
+            renewed_at=now,
+            load=load or 0.0,
+            relay_token=node.relay_token,
         )
-        changed: dict[str, Any] = {"url": node.url, "capacity": node.capacity, "renewed_at": now}
+        changed: dict[str, Any] = {
+            "url": node.url,
+            "capacity": node.capacity,
+            "renewed_at": now,
+            "relay_token": node.relay_token,
+        }
         if load is not None:
             changed["load"] = load
         conn.execute(statement.on_conflict_do_update(index_elements=[nodes.c.name], set_=changed))
@@ -166,7 +178,7 @@ def site(db: Database, lease_s: float) -> list[dict[str, Any]]:
     its load and last renewal, and whether it is alive (renewed within ``lease_s``)."""
     c = cameras.c
     with reader(db.engine).connect() as conn:
-        now = float(conn.execute(select(_Now())).scalar_one())
+        now = float(conn.execute(select(DatabaseNow())).scalar_one())
         rows = conn.execute(select(nodes).order_by(nodes.c.name)).mappings().all()
         held = conn.execute(
             select(c.node, c.id).where(c.node.is_not(None), c.lease_until >= now).order_by(c.id)
@@ -185,7 +197,7 @@ def site(db: Database, lease_s: float) -> list[dict[str, Any]]:
     ]
 
 
-class _Now(FunctionElement[float]):
+class DatabaseNow(FunctionElement[float]):
     """The database's clock, in seconds since the epoch: one clock for every node."""
 
     type = Double()
@@ -193,12 +205,12 @@ class _Now(FunctionElement[float]):
     inherit_cache = True
 
 
-@compiles(_Now)
-def _now_sqlite(element: _Now, compiler: SQLCompiler, **kw: Any) -> str:
+@compiles(DatabaseNow)
+def _now_sqlite(element: DatabaseNow, compiler: SQLCompiler, **kw: Any) -> str:
     return "((julianday('now') - 2440587.5) * 86400.0)"
 
 
-@compiles(_Now, "postgresql")
-def _now_postgres(element: _Now, compiler: SQLCompiler, **kw: Any) -> str:
+@compiles(DatabaseNow, "postgresql")
+def _now_postgres(element: DatabaseNow, compiler: SQLCompiler, **kw: Any) -> str:
     # The time now, not the transaction's start: a renewal that waited is not backdated.
     return "CAST(extract(epoch FROM clock_timestamp()) AS DOUBLE PRECISION)"

@@ -4,10 +4,12 @@ from __future__ import annotations
 
 import contextlib
 import errno
+import io
 import threading
 import time
 import zipfile
 from collections.abc import Callable, Iterable, Iterator
+from dataclasses import dataclass
 from pathlib import Path
 from typing import IO, TYPE_CHECKING, Any, cast
 
@@ -142,22 +144,41 @@ class _Sink:
         return out
 
 
-def stream_zip(files: Iterable[tuple[Path, str]], chunk_size: int = 1 << 16) -> Iterator[bytes]:
+@dataclass(frozen=True)
+class Fetched:
+    """A file that is not here (another node keeps it), had whole when the zip reaches it."""
+
+    fetch: Callable[[], bytes | None]
+    """Its bytes, or None when they cannot be had (it is left out)."""
+    mtime: float
+
+
+def stream_zip(
+    files: Iterable[tuple[Path | Fetched, str]], chunk_size: int = 1 << 16
+) -> Iterator[bytes]:
     """Yield a zip of ``(path, name in archive)`` pairs piece by piece, never whole in memory.
 
     JPEGs are stored, not deflated: they do not compress, and storing is cheap.
-    Files that vanished meanwhile are skipped.
+    Files that vanished meanwhile (or cannot be fetched) are skipped.
     """
     sink = _Sink()
     target = cast(IO[bytes], sink)
     with zipfile.ZipFile(target, mode="w", compression=zipfile.ZIP_STORED) as archive:
-        for path, name in files:
+        for source, name in files:
             try:
-                handle = path.open("rb")
+                if isinstance(source, Fetched):
+                    data = source.fetch()
+                    if data is None:
+                        continue
+                    handle: IO[bytes] = io.BytesIO(data)
+                    mtime = source.mtime
+                else:
+                    handle = source.open("rb")
+                    mtime = source.stat().st_mtime
             except OSError:
                 continue
             with handle:
-                info = zipfile.ZipInfo(name, date_time=time.gmtime(path.stat().st_mtime)[:6])
+                info = zipfile.ZipInfo(name, date_time=time.gmtime(mtime)[:6])
                 info.compress_type = zipfile.ZIP_STORED
                 with archive.open(info, mode="w") as entry:
                     while block := handle.read(chunk_size):

@@ -152,6 +152,7 @@ activity = Table(
 
 # The nodes of a site (app/nodes/): each renews its row with its leases; one whose
 # renewed_at is older than VIGIL_LEASE_S is gone. load: its cameras over its capacity.
+# relay_token: what another node shows it to be relayed its pictures and files.
 nodes = Table(
     "nodes",
     metadata,
@@ -160,4 +161,5 @@ nodes = Table(
     Column("capacity", INT64, nullable=False),
     Column("load", FLOAT64, nullable=False, server_default="0"),
     Column("renewed_at", FLOAT64, nullable=False),
+    Column("relay_token", Text, nullable=False, server_default=""),
 )

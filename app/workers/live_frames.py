@@ -53,6 +53,19 @@ def live_message(
     return b"".join((HEADER_LENGTH.pack(len(header)), header, viewing_jpeg(source, width, quality)))
 
 
+def message_camera(message: bytes) -> int | None:
+    """The camera a live message is of (from its header); None for what is not one."""
+    if len(message) < HEADER_LENGTH.size:
+        return None
+    (length,) = HEADER_LENGTH.unpack_from(message)
+    try:
+        header = json.loads(message[HEADER_LENGTH.size : HEADER_LENGTH.size + length])
+    except ValueError:
+        return None
+    camera = header.get("camera_id") if isinstance(header, dict) else None
+    return camera if type(camera) is int else None
+
+
 def live_header(
     camera_id: int,
     frame: int,

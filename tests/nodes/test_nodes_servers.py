@@ -20,6 +20,7 @@ from tests.api.vigil_livekit import (
     Running,
     WsClient,
     add_camera,
+    free_port,
     live_settings,
     running_server,
     wait_for,
@@ -33,20 +34,27 @@ LEASE_S = 3.0
 
 
 def _node(tmp_path: Path, name: str, postgres_url: str | None, **more: Any) -> Any:
-    url = f"http://{name}.example:8000" if postgres_url else ""  # Alone: the default.
+    """A node's settings; in a site, on a port of its own, the node's address
+    (``http://127.0.0.1:<port>``) as the others reach it: ``_serve`` runs it there."""
+    port = free_port() if postgres_url else 8000  # Alone: the default, never served.
     return live_settings(
         tmp_path / name,
         database_url=postgres_url,
         node_name=name,
-        node_url=url,
+        port=port,
         lease_s=LEASE_S,
         **more,
     )
 
 
-def _live(base: str) -> list[int]:
-    """The cameras this server runs and shows live."""
-    return sorted(c["id"] for c in httpx.get(f"{base}/api/cameras").json() if c["state"] == "live")
+def _serve(settings: Any) -> Any:
+    return running_server(settings, port=settings.port if settings.database_url else 0)
+
+
+def _live(base: str, node: str) -> list[int]:
+    """The cameras ``node`` (served at ``base``) runs and shows live."""
+    listed = httpx.get(f"{base}/api/cameras").json()
+    return sorted(c["id"] for c in listed if c["state"] == "live" and c["node"] == node)
 
 
 def _spread_evenly(north: Running, south: Running, ids: list[int]) -> dict[str, list[int]]:
@@ -54,7 +62,7 @@ def _spread_evenly(north: Running, south: Running, ids: list[int]) -> dict[str, 
     each = len(ids) // 2
     return wait_for(
         lambda: (
-            (r := {"north": _live(north.base), "south": _live(south.base)})
+            (r := {"north": _live(north.base, "north"), "south": _live(south.base, "south")})
             and sorted(r["north"] + r["south"]) == ids
             and len(r["north"]) == len(r["south"]) == each
             and r
@@ -71,8 +79,8 @@ def test_two_nodes_run_each_camera_once_and_its_activation_and_pin_follow_it(
     north_settings = _node(tmp_path, "north", postgres_url)
     south_settings = _node(tmp_path, "south", postgres_url)
     with (
-        running_server(north_settings) as north,
-        running_server(south_settings) as south,
+        _serve(north_settings) as north,
+        _serve(south_settings) as south,
         WsClient(south.ws) as south_ws,
     ):
         ids = [add_camera(north.base, f"file://{video}", f"cam{i}") for i in range(4)]
@@ -80,17 +88,23 @@ def test_two_nodes_run_each_camera_once_and_its_activation_and_pin_follow_it(
         for server in (north, south):  # Both say where each camera runs.
             shown = {c["id"]: c["node"] for c in httpx.get(f"{server.base}/api/cameras").json()}
             assert shown == {i: n for n, held in running.items() for i in held}
-        elsewhere = httpx.get(f"{north.base}/api/cameras/{running['south'][0]}").json()
-        assert elsewhere["reason"] == "runs on node south"
+        # North shows a camera south runs as south does: live, with its frame rate.
+        elsewhere = wait_for(
+            lambda: (
+                (c := httpx.get(f"{north.base}/api/cameras/{running['south'][0]}").json())
+                and c["state"] == "live"
+                and c
+            ),
+            10,
+            "north to show south's camera live",
+        )
+        assert elsewhere["node"] == "south" and elsewhere["fps"] > 0
         site = httpx.get(f"{south.base}/api/nodes").json()
         assert [(n["name"], n["cameras"], n["alive"]) for n in site] == [
             ("north", running["north"], True),
             ("south", running["south"], True),
         ]
-        assert (
-            site[0]["url"] == "http://north.example:8000"
-            and site[0]["load"] == 2 / site[0]["capacity"]
-        )
+        assert site[0]["url"] == north.base and site[0]["load"] == 2 / site[0]["capacity"]
         assert time.time() - site[1]["renewed_at"] < LEASE_S
 
         camera = running["south"][0]  # Activated on north, which does not run it.
@@ -104,8 +118,8 @@ def test_two_nodes_run_each_camera_once_and_its_activation_and_pin_follow_it(
         assert pinned.json()["pinned_to"] == "south"
         wait_for(
             lambda: (
-                _live(south.base) == sorted([usb, *running["south"]])
-                and _live(north.base) == running["north"][1:]
+                _live(south.base, "south") == sorted([usb, *running["south"]])
+                and _live(north.base, "north") == running["north"][1:]
             ),
             15,
             "the pinned camera on south",
@@ -113,7 +127,7 @@ def test_two_nodes_run_each_camera_once_and_its_activation_and_pin_follow_it(
 
         stopped = time.monotonic()
         north.stop()  # Stopping, north gives its leases up: south need not wait for them.
-        wait_for(lambda: _live(south.base) == ids, 15, "south to run all four")
+        wait_for(lambda: _live(south.base, "south") == ids, 15, "south to run all four")
         assert time.monotonic() - stopped < LEASE_S + 5
         (alone,) = httpx.get(f"{south.base}/api/nodes").json()
         assert (alone["name"], alone["cameras"]) == ("south", ids)
@@ -123,7 +137,7 @@ def test_a_node_taking_over_ends_the_event_its_dead_node_left_open(
     postgres_url: str, tmp_path: Path
 ) -> None:
     video = write_video(tmp_path / "door.avi")
-    with running_server(_node(tmp_path, "south", postgres_url)) as south, WsClient(south.ws) as ws:
+    with _serve(_node(tmp_path, "south", postgres_url)) as south, WsClient(south.ws) as ws:
         # As a node "ghost" killed during an event leaves it: its lease ran out, the
         # event is open.
         ghost = Database(postgres_url, migrate=False, node="ghost")
@@ -138,7 +152,7 @@ def test_a_node_taking_over_ends_the_event_its_dead_node_left_open(
         event = ghost.event(opened)
         assert event is not None and event["ended_at"] == event["started_at"]
         assert event["node"] == "ghost"  # Made by ghost, ended by south.
-        wait_for(lambda: _live(south.base) == [camera], 15, "south to run the camera")
+        wait_for(lambda: _live(south.base, "south") == [camera], 15, "south to run the camera")
         assert httpx.get(f"{south.base}/api/cameras/{camera}").json()["node"] == "south"
         ghost.close()
 
@@ -146,9 +160,9 @@ def test_a_node_taking_over_ends_the_event_its_dead_node_left_open(
 def test_without_a_shared_database_the_node_is_alone_with_every_camera(tmp_path: Path) -> None:
     video = write_video(tmp_path / "door.avi")
     settings = _node(tmp_path, "lone", None)  # SQLite: no leases, every camera runs here.
-    with running_server(settings) as server:
+    with _serve(settings) as server:
         ids = [add_camera(server.base, f"file://{video}", f"cam{i}") for i in range(2)]
-        wait_for(lambda: _live(server.base) == ids, 15, "both cameras live")
+        wait_for(lambda: _live(server.base, "lone") == ids, 15, "both cameras live")
         (node,) = httpx.get(f"{server.base}/api/nodes").json()
         assert (node["name"], node["cameras"], node["alive"]) == ("lone", ids, True)
         assert node["url"] == "http://127.0.0.1:8000"  # VIGIL_HOST and VIGIL_PORT's
@@ -169,8 +183,8 @@ def test_every_node_shows_every_alarm_and_only_the_cameras_node_notifies(
     shared = {"mqtt_url": broker.url, "mqtt_reconnect_max_s": 1.0, "notify_urls": webhook.url()}
     try:
         with (
-            running_server(_node(tmp_path, "north", postgres_url, **shared)) as north,
-            running_server(_node(tmp_path, "south", postgres_url, **shared)) as south,
+            _serve(_node(tmp_path, "north", postgres_url, **shared)) as north,
+            _serve(_node(tmp_path, "south", postgres_url, **shared)) as south,
             WsClient(north.ws) as north_ws,
             WsClient(south.ws) as south_ws,
         ):
@@ -211,9 +225,9 @@ def test_a_node_cut_off_from_the_database_stops_its_cameras_when_its_leases_run_
     cluster = Cluster().start()  # Its own: this test stops it.
     try:
         video = write_video(tmp_path / "door.avi")
-        with running_server(_node(tmp_path, "north", cluster.database())) as north:
+        with _serve(_node(tmp_path, "north", cluster.database())) as north:
             camera = add_camera(north.base, f"file://{video}", "door")
-            wait_for(lambda: _live(north.base) == [camera], 20, "the camera live")
+            wait_for(lambda: _live(north.base, "north") == [camera], 20, "the camera live")
             cameras = north.server.config.app.state.services.cameras  # type: ignore[attr-defined]
             cluster.stop()
             cut = time.monotonic()
@@ -234,12 +248,12 @@ def test_a_notification_target_added_through_one_node_hears_the_others_cameras(
     video = write_video(tmp_path / "door.avi", frames=300)  # One crossing every 20 s.
     try:
         with (
-            running_server(_node(tmp_path, "north", postgres_url)) as north,
-            running_server(_node(tmp_path, "south", postgres_url)) as south,
+            _serve(_node(tmp_path, "north", postgres_url)) as north,
+            _serve(_node(tmp_path, "south", postgres_url)) as south,
         ):
             camera = add_camera(south.base, f"file://{video}", "door")
             placed = wait_for(
-                lambda: [n for n, s in (("north", north), ("south", south)) if _live(s.base)],
+                lambda: [n for n, s in (("north", north), ("south", south)) if _live(s.base, n)],
                 20,
                 "the camera live on one node",
             )

@@ -2,8 +2,9 @@
 loopback sharing a real PostgreSQL and a real Mosquitto, twelve file cameras placed over
 them. One node is killed (SIGKILL to its process group: server and camera processes): its
 cameras are live on the other two within 15 s, every event announced before the kill is
-in the database (those of its cameras ended by the node that took the camera), and once
-restarted it takes its share back, a few cameras at a time, none running twice."""
+in the database (those of its cameras ended by the node that took the camera), a page on
+a survivor gets the live frames of all twelve, and once restarted it takes its share back,
+a few cameras at a time, none running twice."""
 
 from __future__ import annotations
 
@@ -18,6 +19,7 @@ from typing import Any
 import httpx
 import psycopg
 
+from tests.api.vigil_live_frames import LiveViewer
 from tests.api.vigil_livekit import add_camera, free_port, serve_process, wait_for, write_video
 from tests.mqtt.mosquitto import Mosquitto, Watcher
 
@@ -26,16 +28,17 @@ CAMERAS = 12
 BACK_WITHIN_S = 15.0
 
 
-def _live(base: str) -> list[int]:
+def _live(base: str, node: str) -> list[int]:
+    """The cameras ``node`` (served at ``base``) runs and shows live."""
     try:
         listed = httpx.get(f"{base}/api/cameras", timeout=5).json()
     except httpx.HTTPError:
         return []
-    return sorted(c["id"] for c in listed if c["state"] == "live")
+    return sorted(c["id"] for c in listed if c["state"] == "live" and c["node"] == node)
 
 
 def _placement(bases: dict[str, str]) -> dict[str, list[int]]:
-    return {name: _live(base) for name, base in bases.items()}
+    return {name: _live(base, name) for name, base in bases.items()}
 
 
 def _each_once(placed: dict[str, list[int]], ids: list[int]) -> bool:
@@ -110,6 +113,12 @@ def test_a_killed_nodes_cameras_return_on_the_others_and_it_takes_a_share_back(
             back_s = time.monotonic() - killed
             print(f"east's cameras live again {back_s:.1f} s after the kill")
             assert back_s < BACK_WITHIN_S, f"east's cameras took {back_s:.1f} s to return"
+            # A page on a survivor shows all twelve live: their frames over its /ws/live,
+            # relayed from the other survivor for the cameras that one runs.
+            with LiveViewer(survivors["north"].replace("http", "ws", 1) + "/ws/live") as viewer:
+                viewer.watch(ids)
+                for camera in ids:
+                    viewer.wait(camera, 3, timeout=20)
             for base in survivors.values():  # Each survivor names where every camera runs.
                 shown = {c["node"] for c in httpx.get(f"{base}/api/cameras").json()}
                 assert shown == set(survivors)

@@ -159,7 +159,7 @@ def test_a_database_of_the_first_schema_gains_nodes_leases_and_pins(db_target: T
 
     db = Database(db_target, node="north")
 
-    assert db.revision == migrate.head() == "0002"
+    assert db.revision == migrate.head() == "0003"
     assert _differences(db) == []
     door = db.camera(1)
     assert door is not None

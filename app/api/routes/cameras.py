@@ -14,6 +14,7 @@ from pydantic import BaseModel, Field, field_validator
 
 from app.api.routes.inputs import STRICT, StrictJsonRoute, check_min_area, is_control
 from app.api.services import services
+from app.nodes.relay import is_relayed
 from app.sources.live import MASK, has_masked_password, parse_source, with_stored_password
 from app.vision.motion import DEFAULT_METHOD, METHODS
 from app.vision.zones import as_polygons
@@ -113,7 +114,8 @@ def _camera_or_404(request: Request, camera_id: int) -> dict[str, Any]:
 @router.get("")
 def list_cameras(request: Request) -> list[dict[str, Any]]:
     svc = services(request)
-    return [svc.camera_view(c) for c in svc.database.cameras()]
+    ask_others = not is_relayed(request)  # A node asking is told of this one's cameras.
+    return [svc.camera_view(c, ask_others) for c in svc.database.cameras()]
 
 
 @router.post("")

@@ -4,10 +4,12 @@ from __future__ import annotations
 
 import math
 import time
+from pathlib import Path
 from typing import Annotated, Any
 
 from fastapi import APIRouter, HTTPException, Query, Request, Response
 from pydantic import BaseModel, Field
+from starlette.concurrency import run_in_threadpool
 
 from app.api.ranges import ranged_file
 from app.api.routes.inputs import MAX_ID, MAX_IDS, STRICT, CameraFilter, StrictJsonRoute, TimeFilter
@@ -64,11 +66,12 @@ def get_event(request: Request, event_id: int) -> dict[str, Any]:
 
 
 @router.get("/events/{event_id}/clip.mp4")
-def event_clip(request: Request, event_id: int) -> Response:
+async def event_clip(request: Request, event_id: int) -> Response:
     """The event's clip, H.264 in MP4, whole or the range asked for (``Range``: 206). One
-    still being recorded is served as far as its last whole fragment."""
+    still being recorded is served as far as its last whole fragment. One another node
+    recorded (and keeps) is asked of that node."""
     svc = services(request)
-    row = _event_or_404(svc, event_id)
+    row = await run_in_threadpool(_event_or_404, svc, event_id)
     if not row["clip_path"]:
         why = row["clip_error"] or "none was recorded"
         raise HTTPException(404, f"event {event_id} has no clip: {why}")
@@ -76,6 +79,13 @@ def event_clip(request: Request, event_id: int) -> Response:
         path = svc.clips.path(row["clip_path"])
     except ValueError:
         raise HTTPException(404, f"event {event_id} has no clip") from None
+    holder = svc.holder(row, path)
+    if holder is not None and svc.relay is not None:
+        return await svc.relay.get(request, holder, f"event {event_id}'s clip")
+    return await run_in_threadpool(_clip_file, request, event_id, row, path)
+
+
+def _clip_file(request: Request, event_id: int, row: dict[str, Any], path: Path) -> Response:
     recording = row["clip_s"] is None
     length = complete_length(path) if recording else None
     if recording and not length:

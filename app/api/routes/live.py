@@ -11,6 +11,9 @@ new frame replaces what waits there. The client's one sending task takes the slo
 and sends them, waiting while the connection's buffer is full. So a slow client gets
 fewer frames, never a queue; the cameras and the other clients never wait for it.
 
+Cameras another node of the site runs are relayed from it (``app.nodes.live_relay``):
+their messages are that node's, byte for byte, with the same backpressure here.
+
 The session and origin rules are those of ``/ws`` (``app.api.security``'s guards take
 every WebSocket). Other message types from the client are ignored; a watch message
 that is not one is refused by closing with 1003 and the reason.
@@ -24,9 +27,11 @@ import json
 import threading
 from dataclasses import dataclass
 
-from fastapi import APIRouter, WebSocket, WebSocketDisconnect
+from fastapi import APIRouter, HTTPException, WebSocket, WebSocketDisconnect
 
 from app.api.services import Services, services
+from app.nodes.live_relay import NodeFeed
+from app.nodes.relay import is_relayed
 from app.workers.camera_host import Camera
 
 router = APIRouter()
@@ -130,22 +135,30 @@ class LiveClient:
 
 
 class LiveSession:
-    """What one connection watches: the hubs its client is registered with, kept as its
-    last watch message asks."""
+    """What one connection watches: the hubs its client is registered with, and the nodes
+    it is relayed the others from (``app.nodes.live_relay``), kept as its last watch
+    message asks."""
 
-    def __init__(self, svc: Services, client: LiveClient) -> None:
+    def __init__(self, svc: Services, client: LiveClient, relayed: bool) -> None:
         self.svc = svc
         self.client = client
+        self.relayed = relayed
+        """A client that is another node: it is sent this node's cameras only."""
         self.wanted = Watch()
         self.watched: dict[int, tuple[Camera, int]] = {}
         """Camera id -> the camera whose hub the client is registered with, and the width."""
+        self.feeds: dict[str, NodeFeed] = {}
+        """Node -> the feed of the client's cameras that node runs."""
+        self.shown: frozenset[int] = frozenset()
+        """The cameras whose frames go to the client: here or relayed."""
 
     def want(self, watch: Watch) -> None:
         self.wanted = watch
         self.sync()
 
     def sync(self) -> None:
-        """Register the client with the hubs of the cameras wanted, and with no other."""
+        """Register the client with the hubs of the cameras wanted that run here, and with
+        no other; follow those that run on other nodes from there."""
         wanted = set(self.wanted.cameras)
         width = self.wanted.width
         for camera_id, (camera, _) in list(self.watched.items()):
@@ -153,18 +166,45 @@ class LiveSession:
             if camera_id not in wanted or current is not camera or camera.hub.closed:
                 del self.watched[camera_id]
                 camera.hub.unwatch_live(self.client)
+        elsewhere: dict[str, set[int]] = {}
         for camera_id in self.wanted.cameras:
             found = self.svc.cameras.get(camera_id)
-            if found is None or found.hub.closed:
+            if found is None:
+                node = self._node_of(camera_id)
+                if node is not None:
+                    elsewhere.setdefault(node, set()).add(camera_id)
+                continue
+            if found.hub.closed:
                 continue
             if self.watched.get(camera_id) != (found, width):
                 found.hub.watch_live(self.client, camera_id, width)
                 self.watched[camera_id] = (found, width)
+        self._follow(elsewhere, width)
+        self.shown = frozenset(self.watched).union(*elsewhere.values())
+
+    def _node_of(self, camera_id: int) -> str | None:
+        if self.relayed or self.svc.relay is None:
+            return None
+        with contextlib.suppress(HTTPException):  # No such camera: nothing to show.
+            return self.svc.node_of(camera_id)
+        return None
+
+    def _follow(self, elsewhere: dict[str, set[int]], width: int) -> None:
+        for node in set(self.feeds) - set(elsewhere):
+            self.feeds.pop(node).close()
+        relay = self.svc.relay
+        for node, cameras in elsewhere.items():
+            if node not in self.feeds and relay is not None:
+                self.feeds[node] = NodeFeed(relay, node, self.client.offer)
+            self.feeds[node].watch(frozenset(cameras), width)
 
     def close(self) -> None:
         for camera, _ in self.watched.values():
             camera.hub.unwatch_live(self.client)
         self.watched.clear()
+        for feed in self.feeds.values():
+            feed.close()
+        self.feeds.clear()
 
 
 @router.websocket("/ws/live")
@@ -172,7 +212,7 @@ async def live(socket: WebSocket) -> None:
     svc = services(socket)
     await socket.accept()
     client = LiveClient(asyncio.get_running_loop())
-    session = LiveSession(svc, client)
+    session = LiveSession(svc, client, relayed=is_relayed(socket))
     reader = asyncio.create_task(_read_watches(socket, session))
     try:
         while not svc.closing and not reader.done():
@@ -181,7 +221,7 @@ async def live(socket: WebSocket) -> None:
                 session.sync()
             messages = await client.take()
             for camera_id, message in messages.items():
-                if camera_id in session.watched:  # Not one unwatched since it came.
+                if camera_id in session.shown:  # Not one unwatched since it came.
                     await socket.send_bytes(message)
         if svc.closing:
             with contextlib.suppress(Exception):

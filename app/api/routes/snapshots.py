@@ -4,12 +4,14 @@ from __future__ import annotations
 
 import time
 from collections.abc import Iterator
+from functools import partial
 from pathlib import Path
 from typing import Annotated, Any
 
 from fastapi import APIRouter, HTTPException, Query, Request
-from fastapi.responses import FileResponse, StreamingResponse
+from fastapi.responses import FileResponse, Response, StreamingResponse
 from pydantic import BaseModel, Field
+from starlette.concurrency import run_in_threadpool
 
 from app.api.routes.inputs import (
     MAX_ID,
@@ -20,7 +22,7 @@ from app.api.routes.inputs import (
     TimeFilter,
 )
 from app.api.services import Services, services
-from app.storage.files import stream_zip
+from app.storage.files import Fetched, stream_zip
 
 router = APIRouter(prefix="/api", tags=["snapshots"], route_class=StrictJsonRoute)
 
@@ -114,24 +116,34 @@ def snapshots_zip(
 
 
 def _zip_entries(svc: Services, rows: list[dict[str, Any]]) -> Iterator[bytes]:
-    def files() -> Iterator[tuple[Path, str]]:
+    def files() -> Iterator[tuple[Path | Fetched, str]]:
         for row in rows:
             try:
                 path = svc.snapshots.path(row["path"])
             except ValueError:
                 continue
-            yield path, f"camera-{row['camera_id']}/{row['id']:06d}-{path.name}"
+            name = f"camera-{row['camera_id']}/{row['id']:06d}-{path.name}"
+            holder = svc.holder(row, path)
+            if holder is not None and svc.relay is not None:
+                fetch = partial(svc.relay.fetch, holder, f"/api/snapshots/{row['id']}.jpg")
+                yield Fetched(fetch, row["ts"]), name
+            else:
+                yield path, name
 
     return stream_zip(files())
 
 
 @router.get("/snapshots/{snapshot_id}.jpg")
-def snapshot_file(request: Request, snapshot_id: int) -> FileResponse:
+async def snapshot_file(request: Request, snapshot_id: int) -> Response:
+    """The snapshot's JPEG; one another node made (and keeps) is asked of that node."""
     svc = services(request)
-    row = svc.database.snapshot(snapshot_id)
+    row = await run_in_threadpool(svc.database.snapshot, snapshot_id)
     if row is None:
         raise HTTPException(404, f"no snapshot {snapshot_id}")
     path = svc.snapshots.path(row["path"])
+    holder = svc.holder(row, path)
+    if holder is not None and svc.relay is not None:
+        return await svc.relay.get(request, holder, f"snapshot {snapshot_id}")
     if not path.is_file():
         raise HTTPException(404, f"snapshot {snapshot_id} file is missing")
     return FileResponse(path, media_type="image/jpeg")

@@ -1,4 +1,6 @@
-"""Live pictures: MJPEG streams, and single frames for pages with many cameras."""
+"""Live pictures: MJPEG streams, and single frames for pages with many cameras.
+
+A camera another node of the site runs is relayed from that node (``app.nodes.relay``)."""
 
 from __future__ import annotations
 
@@ -8,7 +10,7 @@ from collections.abc import AsyncIterator
 from fastapi import APIRouter, HTTPException, Request, Response
 from fastapi.responses import StreamingResponse
 
-from app.api.services import services, worker_or_404
+from app.api.services import services
 from app.vision.annotate import status_card
 from app.workers.camera_host import Camera
 from app.workers.hub import Kind, Picture, encode_jpeg, viewer_jpeg
@@ -57,22 +59,35 @@ async def _frames(request: Request, camera: Camera, kind: Kind) -> AsyncIterator
             yield mjpeg_part(await viewer_jpeg(item, kind))
 
 
+async def _here_or_relayed(request: Request, camera_id: int, stream: bool) -> Camera | Response:
+    """The camera's worker when it runs here; else the answer of the node that runs it."""
+    svc = services(request)
+    worker = svc.cameras.get(camera_id)
+    if worker is not None:
+        return worker
+    node = svc.node_of(camera_id)
+    if node is None or svc.relay is None:
+        raise HTTPException(404, f"no camera {camera_id}")
+    return await svc.relay.get(request, node, f"camera {camera_id}", stream=stream)
+
+
+async def _stream(request: Request, camera_id: int, kind: Kind) -> Response:
+    found = await _here_or_relayed(request, camera_id, stream=True)
+    if isinstance(found, Response):
+        return found
+    return StreamingResponse(_frames(request, found, kind), media_type=MJPEG_TYPE, headers=NO_CACHE)
+
+
 @router.get("/{camera_id}/stream.mjpg")
-async def stream(request: Request, camera_id: int) -> StreamingResponse:
+async def stream(request: Request, camera_id: int) -> Response:
     """Annotated frames (boxes, track ids, trails; the motion mask when show_mask is on)."""
-    worker = worker_or_404(request, camera_id)
-    return StreamingResponse(
-        _frames(request, worker, "picture"), media_type=MJPEG_TYPE, headers=NO_CACHE
-    )
+    return await _stream(request, camera_id, "picture")
 
 
 @router.get("/{camera_id}/histogram.mjpg")
-async def histogram_stream(request: Request, camera_id: int) -> StreamingResponse:
+async def histogram_stream(request: Request, camera_id: int) -> Response:
     """The grey-level histogram of each frame, drawn as a picture."""
-    worker = worker_or_404(request, camera_id)
-    return StreamingResponse(
-        _frames(request, worker, "histogram"), media_type=MJPEG_TYPE, headers=NO_CACHE
-    )
+    return await _stream(request, camera_id, "histogram")
 
 
 async def _latest(camera: Camera, kind: Kind) -> Picture:
@@ -92,16 +107,20 @@ async def _latest(camera: Camera, kind: Kind) -> Picture:
     return item
 
 
+async def _frame(request: Request, camera_id: int, kind: Kind) -> Response:
+    found = await _here_or_relayed(request, camera_id, stream=False)
+    if isinstance(found, Response):
+        return found
+    data = await viewer_jpeg(await _latest(found, kind), kind)
+    return Response(data, media_type="image/jpeg", headers=NO_CACHE)
+
+
 @router.get("/{camera_id}/frame.jpg")
 async def frame(request: Request, camera_id: int) -> Response:
     """The newest annotated frame, for pages that poll (more cameras than connections)."""
-    item = await _latest(worker_or_404(request, camera_id), "picture")
-    data = await viewer_jpeg(item, "picture")
-    return Response(data, media_type="image/jpeg", headers=NO_CACHE)
+    return await _frame(request, camera_id, "picture")
 
 
 @router.get("/{camera_id}/histogram.jpg")
 async def histogram_frame(request: Request, camera_id: int) -> Response:
-    item = await _latest(worker_or_404(request, camera_id), "histogram")
-    data = await viewer_jpeg(item, "histogram")
-    return Response(data, media_type="image/jpeg", headers=NO_CACHE)
+    return await _frame(request, camera_id, "histogram")

@@ -1,0 +1,186 @@
+"""Any node serves the whole site (app/nodes/relay.py, live_relay.py): two real servers with
+a password, sharing a real PostgreSQL, each running one camera pinned to it. Through north,
+south's camera is shown as south shows it; its live frames come over north's /ws/live byte
+for byte, its MJPEG stream and single frames from north's routes; its snapshots, zip and
+clip (with ranges) are south's files, fetched from south. A request claiming to be a node
+without that node's token is refused. Once south is gone, north says so at once, naming it,
+and never hangs."""
+
+from __future__ import annotations
+
+import base64
+import io
+import zipfile
+from collections.abc import Iterator
+from contextlib import ExitStack
+from pathlib import Path
+from typing import Any
+
+import httpx
+import pytest
+
+from app.nodes.relay import RELAY_HEADER
+from tests.api.test_api_ws_live import file_packets
+from tests.api.vigil_live_frames import LiveViewer
+from tests.api.vigil_livekit import (
+    Running,
+    free_port,
+    live_settings,
+    running_server,
+    wait_for,
+    write_video,
+)
+
+PASSWORD = "correct horse"
+AUTH = httpx.BasicAuth("vigil", PASSWORD)
+BASIC = "Basic " + base64.b64encode(f"vigil:{PASSWORD}".encode()).decode()
+LOOP = 75
+
+
+class Site:
+    """North and south, each running one activated camera pinned to it."""
+
+    def __init__(self, stack: ExitStack, tmp_path: Path, postgres_url: str) -> None:
+        self.stack = stack
+        self.data = {name: tmp_path / name for name in ("north", "south")}
+        self.servers: dict[str, Running] = {}
+        for name, folder in self.data.items():
+            port = free_port()
+            settings = live_settings(
+                folder,
+                database_url=postgres_url,
+                node_name=name,
+                port=port,
+                lease_s=3.0,
+                password=PASSWORD,
+            )
+            self.servers[name] = stack.enter_context(running_server(settings, port=port))
+        self.video = write_video(tmp_path / "door.avi", frames=LOOP)
+        self.cameras = {}
+        for name in self.servers:
+            camera = self.add(f"{name} door")
+            self.patch(camera, pinned_to=name)
+            self.cameras[name] = camera
+        for name, camera in self.cameras.items():
+            wait_for(
+                lambda n=name, c=camera: (
+                    self.camera(n, c)["state"] == "live" and self.camera(n, c)["node"] == n
+                ),
+                20,
+                f"{name}'s camera live on {name}",
+            )
+            self.post(f"/api/cameras/{camera}/activate")
+
+    @property
+    def north(self) -> str:
+        return self.servers["north"].base
+
+    @property
+    def south(self) -> str:
+        return self.servers["south"].base
+
+    def add(self, name: str) -> int:
+        added = httpx.post(
+            f"{self.north}/api/cameras",
+            json={"name": name, "source": f"file://{self.video}"},
+            auth=AUTH,
+        )
+        assert added.status_code == 200, added.text
+        return int(added.json()["id"])
+
+    def patch(self, camera: int, **changes: Any) -> None:
+        httpx.patch(
+            f"{self.north}/api/cameras/{camera}", json=changes, auth=AUTH
+        ).raise_for_status()
+
+    def post(self, path: str) -> None:
+        httpx.post(self.north + path, auth=AUTH).raise_for_status()
+
+    def camera(self, node: str, camera: int) -> dict[str, Any]:
+        answer: dict[str, Any] = self.get(node, f"/api/cameras/{camera}").json()
+        return answer
+
+    def get(self, node: str, path: str, **options: Any) -> httpx.Response:
+        return httpx.get(self.servers[node].base + path, auth=AUTH, timeout=20, **options)
+
+
+@pytest.fixture
+def site(postgres_url: str, tmp_path: Path) -> Iterator[Site]:
+    with ExitStack() as stack:
+        yield Site(stack, tmp_path, postgres_url)
+
+
+def _recorded_event(site: Site, camera: int) -> dict[str, Any]:
+    """An event of ``camera`` that has ended, with its clip written and its snapshots."""
+
+    def found() -> dict[str, Any] | None:
+        listed = site.get("north", f"/api/events?camera_id={camera}").json()
+        return next((e for e in listed if e["clip_s"] is not None and e["snapshot"]), None)
+
+    event: dict[str, Any] = wait_for(found, 45, "an event of south's camera with its clip")
+    return event
+
+
+def test_north_serves_south_cameras_pictures_snapshots_and_clips(site: Site) -> None:
+    camera = site.cameras["south"]
+    shown = site.camera("north", camera)
+    assert (shown["node"], shown["state"]) == ("south", "live")
+
+    # Live frames over north's /ws/live: the file's own JPEGs, through two nodes untouched.
+    packets = file_packets(site.video)
+    url = site.servers["north"].ws + "/live"
+    with LiveViewer(url, additional_headers={"Authorization": BASIC}) as viewer:
+        viewer.watch([camera, site.cameras["north"]])
+        frames = viewer.wait(camera, 10)
+        viewer.wait(site.cameras["north"], 10)
+    for _, header, jpeg in frames:
+        assert header["camera_id"] == camera
+        assert jpeg == packets[(header["frame"] - 1) % LOOP]
+
+    # MJPEG stream and a single frame of south's camera, from north.
+    with httpx.stream(
+        "GET", f"{site.north}/api/cameras/{camera}/stream.mjpg", auth=AUTH, timeout=10
+    ) as stream:
+        assert stream.status_code == 200
+        assert stream.headers["content-type"].startswith("multipart/x-mixed-replace")
+        first = next(stream.iter_bytes())
+        assert first.startswith(b"--frame\r\nContent-Type: image/jpeg")
+    frame = site.get("north", f"/api/cameras/{camera}/frame.jpg")
+    assert frame.status_code == 200 and frame.content[:2] == b"\xff\xd8"
+
+    # South's snapshots and clip: its files, on its disk only, served by north.
+    event = _recorded_event(site, camera)
+    assert event["node"] == "south"
+    path = event["snapshot"]
+    snapshot = int(path.rsplit("/", 1)[1].removesuffix(".jpg"))
+    from_south = site.get("south", path)
+    assert from_south.status_code == 200
+    assert site.get("north", path).content == from_south.content
+    assert not (site.data["north"] / "snapshots" / str(camera)).exists()  # Only south has it.
+
+    packed = site.get("north", f"/api/snapshots.zip?camera_id={camera}")
+    with zipfile.ZipFile(io.BytesIO(packed.content)) as archive:
+        names = [n for n in archive.namelist() if f"{snapshot:06d}-" in n]
+        assert len(names) == 1 and archive.read(names[0]) == from_south.content
+
+    clip_path = f"/api/events/{event['id']}/clip.mp4"
+    whole = site.get("south", clip_path).content
+    assert site.get("north", clip_path).content == whole
+    part = site.get("north", clip_path, headers={"Range": "bytes=100-299"})
+    assert part.status_code == 206
+    assert part.headers["content-range"] == f"bytes 100-299/{len(whole)}"
+    assert part.content == whole[100:300]
+
+    # Another node's token is what lets a relayed request in, and nothing else does.
+    forged = httpx.get(f"{site.south}{path}", headers={RELAY_HEADER: "guess"})
+    assert forged.status_code == 401
+    listed = httpx.get(f"{site.north}/api/nodes", auth=AUTH).text
+    assert "token" not in listed
+
+    # South goes: north says at once what it cannot serve, and why.
+    site.servers["south"].stop()
+    gone = site.get("north", path)
+    assert gone.status_code in (502, 503)
+    assert "node south" in gone.json()["detail"]
+    assert site.get("north", f"/api/cameras/{site.cameras['north']}/frame.jpg").status_code == 200
+

@@ -4,7 +4,7 @@ south's camera is shown as south shows it; its live frames come over north's /ws
 for byte, its MJPEG stream and single frames from north's routes; its snapshots, zip and
 clip (with ranges) are south's files, fetched from south. A request claiming to be a node
 without that node's token is refused. Once south is gone, north says so at once, naming it,
-and never hangs."""
+and never hangs. And a page on north shows south's camera live, saying where it runs."""
 
 from __future__ import annotations
 
@@ -28,6 +28,7 @@ from tests.api.vigil_livekit import (
     live_settings,
     running_server,
     wait_for,
+    wait_for_picture,
     write_video,
 )
 
@@ -184,3 +185,16 @@ def test_north_serves_south_cameras_pictures_snapshots_and_clips(site: Site) -> 
     assert "node south" in gone.json()["detail"]
     assert site.get("north", f"/api/cameras/{site.cameras['north']}/frame.jpg").status_code == 200
 
+
+def test_a_page_on_north_shows_south_camera_live_and_where_it_runs(site: Site, page: Any) -> None:
+    camera = site.cameras["south"]
+    page.request.post(f"{site.north}/api/login", data={"password": PASSWORD})
+    page.goto(site.north + "/")
+    card = page.locator(f'.card[data-id="{camera}"]')
+    card.locator(".picture").scroll_into_view_if_needed()
+    wait_for_picture(page, camera)
+    wait_for(lambda: card.locator(".node").is_visible(), 20, "the card to say its node")
+    assert card.locator(".node").inner_text() == "on south"
+    assert card.locator(".state").inner_text() == "live"
+    other = page.locator(f'.card[data-id="{site.cameras["north"]}"] .node')
+    assert other.inner_text() == "on north"

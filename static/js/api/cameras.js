@@ -15,6 +15,7 @@ export class Cameras {
     this.statuses = new Map();   // id -> {at, fields}: a camera's latest /ws status, when it came
     this.changedAt = new Map();  // id -> when this page last asked to change the camera
     this.listedAt = 0;           // when the listing last shown was asked for
+    this.nodes = 1;              // nodes in the site: with several, each card says its node
   }
 
   get(id) {
@@ -49,9 +50,10 @@ export class Cameras {
      than the listing already taken (answers may come out of order). */
   async load() {
     const askedAt = performance.now();
-    const cameras = await api("GET", "/api/cameras");
+    const [cameras, nodes] = await Promise.all([api("GET", "/api/cameras"), api("GET", "/api/nodes")]);
     if (askedAt < this.listedAt) return null;
     this.listedAt = askedAt;
+    this.nodes = nodes.length;
     this.loaded = true;
     const seen = new Set();
     for (const camera of cameras) {

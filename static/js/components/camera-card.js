@@ -113,6 +113,9 @@ export class CameraCard {
     const source = $(".cam-source", card);
     source.textContent = camera.source;
     source.title = camera.source;
+    const node = $(".node", card);  // Where it runs, in a site of several nodes.
+    node.hidden = this.cameras.nodes < 2 || !camera.node;
+    node.textContent = camera.node ? `on ${camera.node}` : "";
     const badge = $(".state", card);
     const unreachable = this.connection.state === "down";
     // While /ws is down nothing is known of the camera: its last state would be a guess.

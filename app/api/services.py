@@ -4,6 +4,7 @@ the notifier."""
 from __future__ import annotations
 
 import asyncio
+import contextlib
 import logging
 import secrets
 import shutil
@@ -138,9 +139,7 @@ class Services:
             )
             self.relay = Relay(self.db, node.name, self.relay_token, settings.lease_s)
             leases = Leases(self.db, node, settings.lease_s)
-            # The notification targets another node's API changed follow too.
-            follow = self.notifier.follow_targets
-            self.keeper = NodeKeeper(leases, self.db, self._cameras, also=follow)
+            self.keeper = NodeKeeper(leases, self.db, self._cameras, also=self._follow_site)
             self.keeper.start()
             log.info("node %s of the site: runs up to %d cameras", node.name, node.capacity)
         self._analyses.start()
@@ -149,6 +148,14 @@ class Services:
                 target=self._prune_forever, name="retention", daemon=True
             )
             self._pruner.start()
+
+    def _follow_site(self) -> None:
+        """At each renewal: the notification targets another node's API changed, and the
+        files of this node whose rows another node deleted."""
+        self.notifier.follow_targets()
+        for kind, path in self.database.take_file_deletions():
+            with contextlib.suppress(ValueError):  # A path outside the folder: none of ours.
+                (self.snapshots if kind == "snapshot" else self.clips).delete(path)
 
     def _prune_forever(self) -> None:
         """Apply ``retention_days`` and ``retention_mb`` now, then every ``retention_interval_s``.
@@ -213,14 +220,17 @@ class Services:
 
     def node_of(self, camera_id: int) -> str | None:
         """The other node that runs the camera (as this node's last renewal read it); None
-        when it runs here or nowhere, or there is no other node. 404 for no such camera."""
+        when it runs here or there is no other node. 404 for no such camera; 503 for one
+        that runs on no node now (its node is gone, or it is pinned to one not running)."""
         if self.cameras.get(camera_id) is not None or self.keeper is None:
             return None
         placement = self.keeper.placement
         if camera_id not in placement:
             raise HTTPException(404, f"no camera {camera_id}")
         node = placement[camera_id]
-        return None if node in (None, self.settings.node) else node
+        if node is None or node == self.settings.node:
+            raise HTTPException(503, f"camera {camera_id} is not running on any node now")
+        return node
 
     def holder(self, row: dict[str, Any], path: Path) -> str | None:
         """The other node to ask for a file (a snapshot's or a clip's, of ``row``) that is
@@ -235,7 +245,7 @@ class Services:
         """Free space, the snapshots' and clips' totals and cap, and why snapshots or clips
         fail (None: they don't)."""
         try:
-            free_mb: float | None = round(shutil.disk_usage(self.settings.data_dir).free / MB, 1)
+            free_mb: float | None = round(shutil.disk_usage(self.settings.media).free / MB, 1)
         except OSError:
             free_mb = None
         return {

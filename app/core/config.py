@@ -25,6 +25,9 @@ class Settings(BaseSettings):
     port: int = Field(default=8000, ge=1, le=MAX_PORT)
     data_dir: Path = Path("data")
     """Holds vigil.db (SQLite), snapshots/, clips/ and analyses/."""
+    media_dir: Path | None = None
+    """Holds snapshots/, clips/ and analyses/ instead of ``data_dir``: a folder every node
+    of a site reaches (NFS), so each serves every file from there (docs/scaling.md)."""
     database_url: str | None = Field(default=None, repr=False)
     """PostgreSQL instead of SQLite for every table: ``postgresql://user:password@host:5432/
     database`` (special characters of the password %-encoded; libpq's parameters such as
@@ -237,16 +240,21 @@ class Settings(BaseSettings):
         return self.database_url or self.db_path
 
     @property
+    def media(self) -> Path:
+        """Where snapshots, clips and analyses go: ``media_dir``, or ``data_dir``."""
+        return self.media_dir or self.data_dir
+
+    @property
     def snapshots_dir(self) -> Path:
-        return self.data_dir / "snapshots"
+        return self.media / "snapshots"
 
     @property
     def clips_dir(self) -> Path:
-        return self.data_dir / "clips"
+        return self.media / "clips"
 
     @property
     def analyses_dir(self) -> Path:
-        return self.data_dir / "analyses"
+        return self.media / "analyses"
 
 
 def _http_url(value: str) -> str:

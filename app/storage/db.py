@@ -48,6 +48,7 @@ from app.storage.schema import (
     cameras,
     clip_usage,
     events,
+    file_deletions,
     notification_targets,
     snapshot_usage,
     snapshots,
@@ -354,7 +355,7 @@ class Database:
     def delete_snapshots(self, ids: Sequence[int]) -> list[dict[str, Any]]:
         """Remove the rows; returns them (newest first) so the caller can remove the files.
         Only the rows this call deleted: of two deleting one snapshot at once, one has it."""
-        deleted = self._delete_returning(snapshots, ids)
+        deleted = self._delete_returning(snapshots, ids, files=("snapshot", "path"))
         return sorted(deleted, key=lambda r: (r["ts"], r["id"]), reverse=True)
 
     def first_snapshots(self, event_ids: Sequence[int]) -> dict[int, int]:
@@ -413,10 +414,12 @@ class Database:
         statement = (
             delete(events)
             .where(e.started_at < before, e.ended_at.is_not(None), _clip_not_recording())
-            .returning(e.clip_path)
+            .returning(e.clip_path, e.node)
         )
         with self.transaction() as conn:
-            paths = list(conn.execute(statement).scalars())
+            deleted = conn.execute(statement).all()
+            self._hand_over(conn, "clip", deleted)
+            paths = [path for path, _ in deleted]
             camera_ids = list(conn.execute(_activity_cameras()).scalars())
             for camera_id in camera_ids:  # Per camera: along the primary key, not a scan.
                 conn.execute(
@@ -430,7 +433,11 @@ class Database:
         """Delete those of ``event_ids`` that have ended and whose clip is not being
         recorded; their rows (the caller deletes their snapshots first, their clips after)."""
         rows = self._delete_returning(
-            events, event_ids, events.c.ended_at.is_not(None), _clip_not_recording()
+            events,
+            event_ids,
+            events.c.ended_at.is_not(None),
+            _clip_not_recording(),
+            files=("clip", "clip_path"),
         )
         return [_event(row) for row in rows]
 
@@ -441,16 +448,54 @@ class Database:
         return _event(row) if row else None
 
     def _delete_returning(
-        self, table: Table, ids: Sequence[int], *conditions: ColumnElement[bool]
+        self,
+        table: Table,
+        ids: Sequence[int],
+        *conditions: ColumnElement[bool],
+        files: tuple[str, str] | None = None,
     ) -> list[dict[str, Any]]:
+        """``files``: the kind of file the rows name and its column, for ``_hand_over``."""
         rows: list[dict[str, Any]] = []
         with self.transaction() as conn:
             for chunk in _chunks(ids):
                 statement = (
                     delete(table).where(table.c.id.in_(chunk), *conditions).returning(*table.c)
                 )
-                rows.extend(dict(row) for row in conn.execute(statement).mappings())
+                found = [dict(row) for row in conn.execute(statement).mappings()]
+                if files is not None:
+                    kind, column = files
+                    self._hand_over(conn, kind, [(r[column], r["node"]) for r in found])
+                rows.extend(found)
         return rows
+
+    def _hand_over(
+        self, conn: Connection, kind: str, files: Sequence[tuple[str | None, str | None]]
+    ) -> None:
+        """Of the files of rows just deleted, ``(path, node)``, those another node of the site
+        holds: for it to delete (``take_file_deletions``), in the same transaction as the
+        rows, so none is forgotten. Alone (SQLite) every file is this node's."""
+        if self.dialect != engines.POSTGRESQL or self.node is None:
+            return
+        theirs = [
+            {"node": node, "kind": kind, "path": path}
+            for path, node in files
+            if path and node is not None and node != self.node
+        ]
+        if theirs:
+            conn.execute(insert(file_deletions), theirs)
+
+    def take_file_deletions(self) -> list[tuple[str, str]]:
+        """The files of this node whose rows another node deleted, ``(kind, path)``, taken
+        off the list: the caller deletes them."""
+        if self.node is None:
+            return []
+        statement = (
+            delete(file_deletions)
+            .where(file_deletions.c.node == self.node)
+            .returning(file_deletions.c.kind, file_deletions.c.path)
+        )
+        with self.transaction() as conn:
+            return [(kind, path) for kind, path in conn.execute(statement)]
 
     # Clips ---------------------------------------------------------------------------------
 
@@ -480,7 +525,15 @@ class Database:
 
     def drop_clip(self, event_id: int, error: str) -> None:
         """The event has no clip (any more), and ``error`` says why."""
-        self._update_event(event_id, clip_path=None, clip_bytes=0, clip_s=None, clip_error=error)
+        e = events.c
+        with self.transaction() as conn:
+            clip = conn.execute(select(e.clip_path, e.node).where(e.id == event_id)).all()
+            conn.execute(
+                update(events)
+                .where(e.id == event_id)
+                .values(clip_path=None, clip_bytes=0, clip_s=None, clip_error=error)
+            )
+            self._hand_over(conn, "clip", clip)
 
     def _update_event(self, event_id: int, **values: Any) -> None:
         with self.transaction() as conn:
@@ -572,6 +625,7 @@ class Database:
                     status="queued",
                     options=json.dumps(options),
                     created_at=time.time(),
+                    node=self.node,
                 )
             )
 
@@ -591,11 +645,15 @@ class Database:
         return [_analysis(r) for r in self._rows(query)]
 
     def fail_unfinished_analyses(self, reason: str) -> int:
+        """Those this node (or one before nodes) was running when it stopped: not another's."""
+        a = analyses.c
         statement = (
             update(analyses)
-            .where(analyses.c.status.in_(("queued", "running")))
+            .where(a.status.in_(("queued", "running")))
             .values(status="failed", error=reason, finished_at=time.time())
         )
+        if self.node is not None:
+            statement = statement.where(a.node.is_(None) | (a.node == self.node))
         with self.transaction() as conn:
             return conn.execute(statement).rowcount
 

@@ -124,6 +124,7 @@ analyses = Table(
     Column("options", Text, nullable=False, server_default="{}"),
     Column("created_at", FLOAT64, nullable=False),
     Column("finished_at", FLOAT64),
+    Column("node", Text),  # The node it runs on, whose disk holds its files.
 )
 
 # Where notifications go: Apprise URLs (app/notify). cameras: a JSON list of camera ids,
@@ -162,4 +163,16 @@ nodes = Table(
     Column("load", FLOAT64, nullable=False, server_default="0"),
     Column("renewed_at", FLOAT64, nullable=False),
     Column("relay_token", Text, nullable=False, server_default=""),
+)
+
+# Files another node holds whose rows were deleted here (by hand or by retention): that
+# node deletes them at its next renewal (app/nodes/keeper.py). kind: snapshot or clip.
+file_deletions = Table(
+    "file_deletions",
+    metadata,
+    Column("id", INT64, primary_key=True),
+    Column("node", Text, nullable=False),
+    Column("kind", Text, nullable=False),
+    Column("path", Text, nullable=False),
+    Index("file_deletions_node", "node"),
 )

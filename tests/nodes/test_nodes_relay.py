@@ -2,7 +2,8 @@
 a password, sharing a real PostgreSQL, each running one camera pinned to it. Through north,
 south's camera is shown as south shows it; its live frames come over north's /ws/live byte
 for byte, its MJPEG stream and single frames from north's routes; its snapshots, zip and
-clip (with ranges) are south's files, fetched from south. A request claiming to be a node
+clip (with ranges) are south's files, fetched from south; deleted through north, they go
+from south's disk. A request claiming to be a node
 without that node's token is refused. Once south is gone, north says so at once, naming it,
 and never hangs. And a page on north shows south's camera live, saying where it runs."""
 
@@ -41,7 +42,9 @@ LOOP = 75
 class Site:
     """North and south, each running one activated camera pinned to it."""
 
-    def __init__(self, stack: ExitStack, tmp_path: Path, postgres_url: str) -> None:
+    def __init__(
+        self, stack: ExitStack, tmp_path: Path, postgres_url: str, **overrides: Any
+    ) -> None:
         self.stack = stack
         self.data = {name: tmp_path / name for name in ("north", "south")}
         self.servers: dict[str, Running] = {}
@@ -54,6 +57,7 @@ class Site:
                 port=port,
                 lease_s=3.0,
                 password=PASSWORD,
+                **overrides,
             )
             self.servers[name] = stack.enter_context(running_server(settings, port=port))
         self.video = write_video(tmp_path / "door.avi", frames=LOOP)
@@ -178,11 +182,27 @@ def test_north_serves_south_cameras_pictures_snapshots_and_clips(site: Site) -> 
     listed = httpx.get(f"{site.north}/api/nodes", auth=AUTH).text
     assert "token" not in listed
 
+    # Deleted through north, the event's files go from south's disk at its next renewal.
+    def files_on_south() -> list[Path]:
+        south = site.data["south"]
+        return [
+            *(south / "snapshots" / str(camera)).rglob(f"*-e{event['id']}-*.jpg"),
+            *(south / "clips" / str(camera)).rglob(f"*-e{event['id']}.mp4"),
+        ]
+
+    assert len(files_on_south()) == 3  # The frame, the difference picture and the clip.
+    deleted = httpx.delete(f"{site.north}/api/events/{event['id']}", auth=AUTH)
+    assert deleted.json()["deleted"] == [event["id"]]
+    wait_for(lambda: not files_on_south(), 10, "south to delete the event's files")
+    assert site.get("north", path).status_code == 404
+
     # South goes: north says at once what it cannot serve, and why.
+    kept = _recorded_event(site, camera)["snapshot"]
     site.servers["south"].stop()
-    gone = site.get("north", path)
+    gone = site.get("north", kept)
     assert gone.status_code in (502, 503)
     assert "node south" in gone.json()["detail"]
+    assert site.get("north", f"/api/cameras/{camera}/frame.jpg").status_code in (502, 503)
     assert site.get("north", f"/api/cameras/{site.cameras['north']}/frame.jpg").status_code == 200
 
 
@@ -198,3 +218,42 @@ def test_a_page_on_north_shows_south_camera_live_and_where_it_runs(site: Site, p
     assert card.locator(".state").inner_text() == "live"
     other = page.locator(f'.card[data-id="{site.cameras["north"]}"] .node')
     assert other.inner_text() == "on north"
+
+
+def test_an_analysis_run_on_south_is_served_by_north(site: Site, tmp_path: Path) -> None:
+    video = write_video(tmp_path / "clip.avi", frames=60)
+    with video.open("rb") as handle:
+        uploaded = httpx.post(
+            f"{site.south}/api/analyses",
+            files={"file": (video.name, handle, "video/x-msvideo")},
+            auth=AUTH,
+            timeout=30,
+        )
+    assert uploaded.status_code == 202, uploaded.text
+    analysis = uploaded.json()["id"]
+    done = wait_for(
+        lambda: (
+            (a := site.get("north", f"/api/analyses/{analysis}").json())["status"] == "done" and a
+        ),
+        60,
+        "the analysis to be done, as north shows it",
+    )
+    assert done["node"] == "south" and done["report"]["frames"] == 60
+    assert done == site.get("south", f"/api/analyses/{analysis}").json()
+    for output in ("tracks.csv", "report.html", "annotated.mp4"):
+        path = f"/api/analyses/{analysis}/{output}"
+        assert site.get("north", path).content == site.get("south", path).content, output
+    assert not (site.data["north"] / "analyses" / analysis).exists()
+
+
+def test_with_a_media_folder_they_share_north_serves_south_files_without_south(
+    postgres_url: str, tmp_path: Path
+) -> None:
+    with ExitStack() as stack:
+        site = Site(stack, tmp_path, postgres_url, media_dir=tmp_path / "nfs")
+        event = _recorded_event(site, site.cameras["south"])
+        snapshot = site.get("south", event["snapshot"]).content
+        clip = site.get("south", event["clip"]).content
+        site.servers["south"].stop()
+        assert site.get("north", event["snapshot"]).content == snapshot
+        assert site.get("north", event["clip"]).content == clip

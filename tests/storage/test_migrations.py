@@ -42,6 +42,7 @@ TABLES = (
     "notification_targets",
     "activity",
     "nodes",
+    "file_deletions",
 )
 
 
@@ -92,7 +93,7 @@ def test_a_database_from_before_migrations_upgrades_in_place_with_every_row(
 ) -> None:
     path = tmp_path / "vigil.db"
     shutil.copy(BEFORE, path)
-    old_tables = TABLES[:-1]  # No nodes then.
+    old_tables = TABLES[:-2]  # No nodes then.
     before = _dump(path, old_tables)
     assert before["events"] and before["snapshots"] and before["activity"]
 
@@ -100,14 +101,14 @@ def test_a_database_from_before_migrations_upgrades_in_place_with_every_row(
 
     assert db.revision == migrate.head()
     # Every row as it was, the columns added since null (no node, no lease, no pin).
-    added = {"cameras": 3, "events": 1, "snapshots": 1}
+    added = {"cameras": 3, "events": 1, "snapshots": 1, "analyses": 1}
     after = _dump(path, old_tables)
     assert {t: [r[: len(r) - added.get(t, 0)] for r in rows] for t, rows in after.items()} == before
     assert {r[len(r) - n :] for t, n in added.items() for r in after[t]} == {
         (None,),
         (None, None, None),
     }
-    assert _dump(path, ("nodes",)) == {"nodes": []}
+    assert _dump(path, ("nodes", "file_deletions")) == {"nodes": [], "file_deletions": []}
     assert sorted(p.name for p in tmp_path.iterdir() if p.suffix == ".db") == ["vigil.db"]
     assert _differences(db) == []
     door, yard = db.cameras()

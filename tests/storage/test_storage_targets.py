@@ -23,9 +23,11 @@ def test_a_database_from_before_notifications_gains_the_targets_table(tmp_path: 
     old.execute("DROP TABLE notification_targets")
     old.execute("DROP TABLE alembic_version")  # Nor had it migrations,
     old.execute("DROP TABLE nodes")  # nor nodes.
+    old.execute("DROP TABLE file_deletions")
     for table, column in [("cameras", c) for c in ("node", "lease_until", "pinned_to")] + [
         ("events", "node"),
         ("snapshots", "node"),
+        ("analyses", "node"),
     ]:
         old.execute(f"ALTER TABLE {table} DROP COLUMN {column}")
     old.commit()

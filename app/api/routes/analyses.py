@@ -8,12 +8,13 @@ import math
 import re
 import shutil
 import uuid
-from collections.abc import AsyncIterator
+from collections.abc import AsyncIterator, Callable
 from pathlib import Path
 from typing import Any, BinaryIO
 
 from fastapi import APIRouter, Form, HTTPException, Request, Response, UploadFile
 from fastapi.responses import FileResponse, JSONResponse, StreamingResponse
+from starlette.concurrency import run_in_threadpool
 
 from app.api.ranges import ranged_file
 from app.api.routes.inputs import check_min_area, is_control
@@ -132,6 +133,7 @@ def _view(svc: Services, row: dict[str, Any], full: bool) -> dict[str, Any]:
         "options": row["options"],
         "created_at": row["created_at"],
         "finished_at": row["finished_at"],
+        "node": row["node"],
         "links": {
             "self": base,
             "stream": f"{base}/stream.mjpg",
@@ -171,65 +173,101 @@ def list_analyses(request: Request) -> list[dict[str, Any]]:
 
 
 @router.get("/{analysis_id}")
-def get_analysis(request: Request, analysis_id: str) -> dict[str, Any]:
-    """Status (queued, running, done, failed), progress 0..1, the report when done, the error."""
+async def get_analysis(request: Request, analysis_id: str) -> Response:
+    """Status (queued, running, done, failed), progress 0..1, the report when done, the error.
+    Done on another node (whose disk holds the report): as that node shows it."""
     svc = services(request)
-    return _view(svc, _row_or_404(svc, analysis_id), True)
+    row = await run_in_threadpool(_row_or_404, svc, analysis_id)
+    report = svc.analyses.folder(analysis_id) / "out" / "report.json"
+    holder = svc.holder(row, report) if row["status"] == "done" else None
+    if holder is not None and svc.relay is not None:
+        return await svc.relay.get(request, holder, f"analysis {analysis_id}")
+    return JSONResponse(await run_in_threadpool(_view, svc, row, True))
 
 
-def _output(request: Request, analysis_id: str, name: str) -> Path:
+async def _output(
+    request: Request, analysis_id: str, name: str, answer: Callable[[Path], Response]
+) -> Response:
+    """``answer`` for the analysis's output file ``name``, once it is done; of an analysis
+    another node ran (its disk holds the files), that node's answer."""
     svc = services(request)
-    row = _row_or_404(svc, analysis_id)
+    row = await run_in_threadpool(_row_or_404, svc, analysis_id)
     path = svc.analyses.folder(analysis_id) / "out" / name
+    holder = svc.holder(row, path)
+    if holder is not None and svc.relay is not None:
+        return await svc.relay.get(request, holder, f"analysis {analysis_id}'s {name}")
     if row["status"] != "done" or not path.is_file():
         raise HTTPException(404, f"{name} is not ready: the analysis is {row['status']}")
-    return path
+    return await run_in_threadpool(answer, path)
 
 
 @router.get("/{analysis_id}/tracks.csv")
-def tracks(request: Request, analysis_id: str) -> FileResponse:
-    return FileResponse(
-        _output(request, analysis_id, "tracks.csv"),
-        media_type="text/csv",
-        filename=f"tracks-{analysis_id}.csv",
+async def tracks(request: Request, analysis_id: str) -> Response:
+    return await _output(
+        request,
+        analysis_id,
+        "tracks.csv",
+        lambda path: FileResponse(
+            path, media_type="text/csv", filename=f"tracks-{analysis_id}.csv"
+        ),
     )
 
 
 @router.get("/{analysis_id}/annotated.avi")
-def annotated(request: Request, analysis_id: str) -> FileResponse:
-    return FileResponse(
-        _output(request, analysis_id, "annotated.avi"),
-        media_type="video/x-msvideo",
-        filename=f"annotated-{analysis_id}.avi",
+async def annotated(request: Request, analysis_id: str) -> Response:
+    return await _output(
+        request,
+        analysis_id,
+        "annotated.avi",
+        lambda path: FileResponse(
+            path, media_type="video/x-msvideo", filename=f"annotated-{analysis_id}.avi"
+        ),
     )
 
 
 @router.get("/{analysis_id}/annotated.mp4")
-def annotated_mp4(request: Request, analysis_id: str) -> Response:
+async def annotated_mp4(request: Request, analysis_id: str) -> Response:
     """The annotated video in H.264, for the page's player: whole, or the range asked for."""
-    path = _output(request, analysis_id, "annotated.mp4")
-    return ranged_file(
-        request, path, "video/mp4", filename=f"annotated-{analysis_id}.mp4", cache="private"
+    return await _output(
+        request,
+        analysis_id,
+        "annotated.mp4",
+        lambda path: ranged_file(
+            request, path, "video/mp4", filename=f"annotated-{analysis_id}.mp4", cache="private"
+        ),
     )
 
 
 @router.get("/{analysis_id}/report.json")
-def report(request: Request, analysis_id: str) -> JSONResponse:
-    path = _output(request, analysis_id, "report.json")
-    return JSONResponse(json.loads(path.read_text()))
+async def report(request: Request, analysis_id: str) -> Response:
+    return await _output(
+        request,
+        analysis_id,
+        "report.json",
+        lambda path: JSONResponse(json.loads(path.read_text())),
+    )
 
 
 @router.get("/{analysis_id}/report.html")
-def report_html(request: Request, analysis_id: str) -> FileResponse:
-    return FileResponse(_output(request, analysis_id, "report.html"), media_type="text/html")
+async def report_html(request: Request, analysis_id: str) -> Response:
+    return await _output(
+        request,
+        analysis_id,
+        "report.html",
+        lambda path: FileResponse(path, media_type="text/html"),
+    )
 
 
 @router.get("/{analysis_id}/stream.mjpg")
-def stream(request: Request, analysis_id: str) -> StreamingResponse:
+async def stream(request: Request, analysis_id: str) -> Response:
     """Annotated frames while the analysis runs; ends with its last frame."""
     svc = services(request)
-    row = _row_or_404(svc, analysis_id)
+    row = await run_in_threadpool(_row_or_404, svc, analysis_id)
     live = svc.analyses.folder(analysis_id) / "out" / LIVE_FRAME
+    holder = svc.holder(row, live)
+    if holder is not None and svc.relay is not None:
+        what = f"analysis {analysis_id}'s frames"
+        return await svc.relay.get(request, holder, what, stream=True)
     if row["status"] in FINISHED and not live.is_file():
         raise HTTPException(404, f"no frames to show: the analysis is {row['status']}")
     return StreamingResponse(

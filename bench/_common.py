@@ -7,12 +7,15 @@ scripts run as ``python bench/NAME.py`` from anywhere without installing Vigil.
 from __future__ import annotations
 
 import argparse
+import contextlib
+import fcntl
 import os
 import platform
 import statistics
 import sys
 from collections.abc import Iterator, Sequence
 from pathlib import Path
+from typing import IO
 
 REPO_ROOT = Path(__file__).resolve().parent.parent
 if str(REPO_ROOT) not in sys.path:
@@ -165,6 +168,32 @@ def _line(cells: Sequence[str], widths: Sequence[int], left: int) -> str:
         for i, (c, w) in enumerate(zip(cells, widths, strict=True))
     )
     return "  ".join(padded).rstrip()
+
+
+BENCH_LOCK = Path("/tmp/vigil/bench.lock")
+
+
+@contextlib.contextmanager
+def bench_lock(name: str) -> Iterator[None]:
+    """The machine's timing runs take turns (``flock /tmp/vigil/bench.lock COMMAND`` takes
+    the same lock): wait for whoever holds it, then hold it."""
+    BENCH_LOCK.parent.mkdir(parents=True, exist_ok=True)
+    with BENCH_LOCK.open("a") as handle:
+        if not _try_lock(handle):
+            print(f"{name}: waiting for {BENCH_LOCK} (another timing run)", flush=True)
+            fcntl.flock(handle, fcntl.LOCK_EX)
+        try:
+            yield
+        finally:
+            fcntl.flock(handle, fcntl.LOCK_UN)
+
+
+def _try_lock(handle: IO[str]) -> bool:
+    try:
+        fcntl.flock(handle, fcntl.LOCK_EX | fcntl.LOCK_NB)
+    except BlockingIOError:
+        return False
+    return True
 
 
 def print_environment(title: str) -> None:

@@ -379,10 +379,11 @@ class Viewers:
 
 
 @contextlib.contextmanager
-def viewers(server: Server, kind: str, ids: Sequence[int]) -> Iterator[Viewers]:
+def viewers(port: int, kind: str, ids: Sequence[int]) -> Iterator[Viewers]:
+    """A process of viewers of the server on ``port``, one per camera of ``ids``."""
     context = mp.get_context("spawn")
     ours, theirs = context.Pipe()
-    process = context.Process(target=viewers_main, args=(theirs, server.port, kind, list(ids)))
+    process = context.Process(target=viewers_main, args=(theirs, port, kind, list(ids)))
     process.start()
     theirs.close()
     if ours.recv() != "ready":
@@ -428,7 +429,7 @@ def run_served(
     ids = server.add(clips, activated)
     try:
         server.wait_live(ids, activated)
-        with viewers(server, kind, ids) if kind else contextlib.nullcontext() as watching:
+        with viewers(server.port, kind, ids) if kind else contextlib.nullcontext() as watching:
             start = time.monotonic()
             samples = []
             for after in bounds_after:

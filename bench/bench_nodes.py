@@ -23,20 +23,18 @@ It holds /tmp/vigil/bench.lock while it runs (and waits for another's to go firs
 from __future__ import annotations
 
 import argparse
-import contextlib
 import os
 import signal
 import statistics
 import subprocess
 import tempfile
 import time
-from collections.abc import Iterator
 from contextlib import ExitStack
 from pathlib import Path
 
 import httpx
 import psycopg
-from _common import print_environment, print_table
+from _common import bench_lock, print_environment, print_table
 
 from tests.api.vigil_livekit import (
     add_camera,
@@ -47,21 +45,6 @@ from tests.api.vigil_livekit import (
 )
 from tests.mqtt.mosquitto import Mosquitto, Watcher
 from tests.postgres import Cluster
-
-LOCK = Path("/tmp/vigil/bench.lock")
-
-
-@contextlib.contextmanager
-def bench_lock() -> Iterator[None]:
-    """The machine's timing benchmarks take turns: wait for another's lock, hold ours."""
-    while LOCK.exists():
-        time.sleep(5)
-    LOCK.parent.mkdir(parents=True, exist_ok=True)
-    LOCK.write_text(f"bench_nodes.py {os.getpid()}\n")
-    try:
-        yield
-    finally:
-        LOCK.unlink(missing_ok=True)
 
 
 class Site:
@@ -164,7 +147,7 @@ def main() -> None:
     parser.add_argument("--window", type=float, default=30.0, help="seconds per cost window")
     parser.add_argument("--lease", type=float, default=10.0, help="VIGIL_LEASE_S")
     args = parser.parse_args()
-    with bench_lock(), tempfile.TemporaryDirectory(prefix="vigil-nodes-") as tmp:
+    with bench_lock("bench_nodes.py"), tempfile.TemporaryDirectory(prefix="vigil-nodes-") as tmp:
         print_environment("bench_nodes.py: leases and failover across vigil serve nodes")
         run(Path(tmp), args)
 

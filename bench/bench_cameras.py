@@ -1,7 +1,7 @@
 """How many live cameras one machine sustains with Vigil's camera workers; CPU beside Motion.
 
     python bench/bench_cameras.py [--quick] [--warmup S] [--window S] [--repeat R]
-                                  [--max-cameras N] [--data DIR] [--synthetic]
+                                  [--max-cameras N] [--data DIR] [--synthetic] [--only a3]
 
 Every camera is Vigil's own ``app.workers.camera.CameraWorker`` reading a
 looping 640x480 25 fps MJPG AVI (``file://CLIP``): it takes the file's JPEGs
@@ -22,6 +22,7 @@ nothing is drawn on it).
     and, as a floor, decoding and segmentation alone (the default method, paced).
 (a2) CPU per frame at load: 8 activated cameras in one worker process (OpenCV
     1 thread), and Motion with the same 8 cameras in one daemon.
+    ``--only a3``: that section alone (about a minute).
 (b) The largest number N of activated cameras for which every camera runs
     detection on >= 24 frames per second over the measured window (and, with
     a viewer, every viewer gets >= 24 pictures a second), with the
@@ -1370,6 +1371,7 @@ def parse_args(argv: Sequence[str] | None = None) -> argparse.Namespace:
     parser.add_argument("--repeat", type=int, default=None, help="windows of each CPU figure")
     parser.add_argument("--max-cameras", type=int, default=64, help="stop climbing here")
     parser.add_argument("--synthetic", action="store_true", help="synthetic scene, not footage")
+    parser.add_argument("--only", choices=["a3"], help="run this section alone")
     add_data_argument(parser)
     args = parser.parse_args(argv)
     quick = args.quick
@@ -1390,8 +1392,11 @@ def main(argv: Sequence[str] | None = None) -> None:
     with tempfile.TemporaryDirectory(prefix="vigil-cameras-") as tmp:
         clips, slow_clip, description = make_clips(args, Path(tmp))
         print(f"camera: {description}")
-        cpu = measure_cpu(args, clips, slow_clip, Path(tmp))
-        measure_cameras(args, clips, Path(tmp), cpu)
+        if args.only == "a3":
+            measure_slow(args, slow_clip, Path(tmp))
+        else:
+            cpu = measure_cpu(args, clips, slow_clip, Path(tmp))
+            measure_cameras(args, clips, Path(tmp), cpu)
     print(f"\ndone in {time.perf_counter() - started:.0f} s")
 
 

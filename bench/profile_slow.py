@@ -110,7 +110,7 @@ STEPS: list[tuple[Any, str, str]] = [
     (camera_module, "encode_jpeg", "alarm: encode 2 JPEGs (q90)"),
     (SnapshotStore, "save", "alarm: write 2 files"),
     (Database, "add_event", "db: add_event"),
-    (Database, "add_snapshot", "db: add_snapshot"),
+    (Database, "add_snapshots", "db: add_snapshots (an alarm's 2 rows)"),
     (Database, "end_event", "db: end_event"),
     (Database, "add_activity", "db: add_activity"),
     (CameraWorker, "_record_start", "record start"),

@@ -1,7 +1,7 @@
 """How many live cameras one machine sustains with Vigil's camera workers; CPU beside Motion.
 
     python bench/bench_cameras.py [--quick] [--warmup S] [--window S] [--repeat R]
-                                  [--max-cameras N] [--data DIR] [--synthetic]
+                                  [--max-cameras N] [--data DIR] [--synthetic] [--only a3]
 
 Every camera is Vigil's own ``app.workers.camera.CameraWorker`` reading a
 looping 640x480 25 fps MJPG AVI (``file://CLIP``): it takes the file's JPEGs
@@ -22,6 +22,7 @@ nothing is drawn on it).
     and, as a floor, decoding and segmentation alone (the default method, paced).
 (a2) CPU per frame at load: 8 activated cameras in one worker process (OpenCV
     1 thread), and Motion with the same 8 cameras in one daemon.
+    ``--only a3``: that section alone (about a minute).
 (b) The largest number N of activated cameras for which every camera runs
     detection on >= 24 frames per second over the measured window (and, with
     a viewer, every viewer gets >= 24 pictures a second), with the
@@ -43,6 +44,7 @@ import math
 import multiprocessing as mp
 import os
 import re
+import sqlite3
 import subprocess
 import tempfile
 import threading
@@ -89,6 +91,28 @@ START_LEAD_S = 0.3
 """Between 'every worker process is ready' and the common start time."""
 STOP_TIMEOUT_S = 5.0
 MOTION_EXTRA_WARMUP_S = 1.0
+MOTION_PICTURES = {
+    "off": ["picture_output off"],
+    # A picture of each event's first motion frame.
+    "first": ["picture_output first"],
+    # What a Vigil alarm saves, on every frame with motion: the picture with a red box
+    # round the motion, at quality 90, its motion picture beside it, and a database row
+    # for each (SQLite, as Vigil's default).
+    "every": [
+        "picture_output on",
+        "picture_output_motion on",
+        "picture_quality 90",
+        "locate_motion_mode on",
+        "locate_motion_style redbox",
+        "database_type sqlite3",
+        "sql_log_picture on",
+        "sql_query insert into pictures (camera, file, frame, kind, at) values "
+        "(%t, '%f', %q, %n, '%Y-%m-%d %T')",
+    ],
+}
+"""Motion's picture options: ``off`` as (a) runs it; ``first`` one picture per event;
+``every`` what Vigil saves on an alarm, saved on every frame with motion."""
+MOTION_TABLE = "create table if not exists pictures (camera, file, frame, kind, at)"
 
 
 @dataclass(frozen=True)
@@ -560,7 +584,7 @@ def motion_version() -> str:
 
 
 def motion_config(
-    clips: Sequence[Path], folder: Path, fps: float = FPS, pictures: bool = False
+    clips: Sequence[Path], folder: Path, fps: float = FPS, pictures: str = "off"
 ) -> Path:
     """The config of NOTES.md: each clip a network camera, detection on, no outputs. One
     camera is configured in the main file, as NOTES.md has it; more, one file each."""
@@ -573,8 +597,8 @@ def motion_config(
             f"framerate {fps:g}",
             "threshold 1500",
             "despeckle_filter EedDl",
-            # A picture of each event's first motion frame, as Vigil saves its alarm's.
-            f"picture_output {'first' if pictures else 'off'}",
+            *MOTION_PICTURES[pictures],
+            f"database_dbname {folder / 'motion.db'}",
             "movie_output off",
             f"target_dir {folder / 'out'}",
         ]
@@ -595,6 +619,8 @@ def motion_config(
             path.write_text("\n".join([*camera, f"camera_id {number}", "stream_port 0"]) + "\n")
             lines.append(f"camera {path}")
     (folder / "out").mkdir(exist_ok=True)
+    with contextlib.closing(sqlite3.connect(folder / "motion.db")) as db:
+        db.execute(MOTION_TABLE)
     path = folder / "motion.conf"
     path.write_text("\n".join(lines) + "\n")
     return path
@@ -611,6 +637,8 @@ class MotionRun:
     log_problems: list[str]
     fps: float = FPS
     """The rate it was run at."""
+    pictures: int = 0
+    """Pictures it saved over the windows (a motion picture counts as one)."""
 
     @property
     def problems(self) -> list[str]:
@@ -622,7 +650,7 @@ class MotionRun:
 
 
 def measure_motion(
-    clips: Sequence[Path], folder: Path, windows: Windows, fps: float = FPS, pictures: bool = False
+    clips: Sequence[Path], folder: Path, windows: Windows, fps: float = FPS, pictures: str = "off"
 ) -> MotionRun:
     """Motion's CPU over each of Vigil's ``windows`` with a camera per clip, frames taken
     as window x FPS per camera (it paces itself), after a warm-up a second longer (its
@@ -636,6 +664,7 @@ def measure_motion(
     )
     marks = []
     read = []
+    saved = []
     try:
         for bound in windows.bounds(time.monotonic()):
             sleep_until(bound)
@@ -643,6 +672,7 @@ def measure_motion(
                 raise SystemExit(f"motion exited early ({proc.returncode}); see {config}")
             marks.append(proc_cpu_seconds(proc.pid))
             read.append(proc_read_bytes(proc.pid))
+            saved.append(sum(1 for _ in (folder / "out").rglob("*.jpg")))
     finally:
         proc.terminate()
         try:
@@ -657,7 +687,7 @@ def measure_motion(
     log = folder / "motion.log"
     text = log.read_text(errors="replace") if log.exists() else ""
     problems = [line for line in text.splitlines() if re.search(r"\[(ERR|WRN|ALR|CRT|EMG)\]", line)]
-    return MotionRun(per_frame, read_fps, problems, fps)
+    return MotionRun(per_frame, read_fps, problems, fps, saved[-1] - saved[0])
 
 
 @dataclass(frozen=True)
@@ -878,65 +908,91 @@ def measure_slow(args: argparse.Namespace, clip: Path, tmp: Path) -> None:
         trials = [
             run_trial(group, [clip], tmp, 1, mode, windows) for mode in (ACTIVE, ACTIVE_CHEAPEST)
         ]
+    frames = [sum(trial.frames) for trial in trials]
+    alarm_share = [trial.alarms / n for trial, n in zip(trials, frames, strict=True)]
     rows: list[list[Cell]] = [
         [
             f"Vigil {trial.mode.label}",
             fmt(median_fps(trial.read_fps), 2),
             fmt(median_fps(trial.processed_fps), 2),
+            fmt(2 * share, 3),  # Each alarm saves two pictures.
             fmt(median(trial.ms_per_frame()), 2),
         ]
-        for trial in trials
+        for trial, share in zip(trials, alarm_share, strict=True)
     ]
-    motion = pictured = None
+    runs: dict[str, MotionRun] = {}
     if MOTION.is_file():
-        motion = measure_motion([clip], tmp, windows, SLOW_FPS)
-        pictured = measure_motion([clip], tmp, windows, SLOW_FPS, pictures=True)
+        runs = {
+            pictures: measure_motion([clip], tmp, windows, SLOW_FPS, pictures)
+            for pictures in MOTION_PICTURES
+        }
     floor = measure_floor(clip, windows, SLOW_FPS)
     rows.append(
         [
             f"Vigil decoding and segmentation alone ({DEFAULT_METHOD}, thread CPU)",
             "-",
             "-",
+            "-",
             fmt(floor.ms, 2),
         ]
     )
-    if motion is not None and pictured is not None:
-        for run, what in ((motion, "pictures off"), (pictured, "a picture per event")):
-            rows.append(
-                [
-                    f"Motion {motion_version()} (detects every frame; {what})",
-                    fmt(run.read_fps, 2),
-                    f"{SLOW_FPS:g}",
-                    fmt(median(run.ms_per_frame), 2),
-                ]
-            )
+    motion_frames = windows.length * windows.count * SLOW_FPS
+    what = {
+        "off": "pictures off",
+        "first": "a picture per event",
+        "every": "an alarm's pictures and rows on every motion frame",
+    }
+    for pictures, run in runs.items():
+        rows.append(
+            [
+                f"Motion {motion_version()} ({what[pictures]})",
+                fmt(run.read_fps, 2),
+                f"{SLOW_FPS:g}",
+                fmt(run.pictures / motion_frames, 3),
+                fmt(median(run.ms_per_frame), 2),
+            ]
+        )
     print_table(
         f"(a3) CPU per {SIZE[0]}x{SIZE[1]} frame at {SLOW_FPS:g} fps, both detecting every "
         f"frame (one camera, OpenCV 1 thread; median of {args.repeat} windows of "
         f"{args.slow_window:g} s)",
-        ["program", "read fps", "detect fps", "ms CPU/frame"],
+        ["program", "read fps", "detect fps", "pictures/frame", "ms CPU/frame"],
         rows,
         note=f"    the clip: every 5th frame of (a)'s, written at {SLOW_FPS:g} fps",
     )
-    if motion is None or pictured is None:
+    if not runs:
         print(f"Motion: skipped, {MOTION} is absent")
         return
-    motion_ms = median(motion.ms_per_frame)
-    for trial, label in zip(trials, ("Vigil activated", "  with frame-difference"), strict=True):
-        ratio = median(trial.ms_per_frame()) / motion_ms
+    motion_ms = {pictures: median(run.ms_per_frame) for pictures, run in runs.items()}
+    vigil_ms = [median(trial.ms_per_frame()) for trial in trials]
+    for index, label in enumerate(("Vigil activated", "  with frame-difference")):
+        ratio = vigil_ms[index] / motion_ms["off"]
         verdict = "met" if ratio <= SLOW_TARGET else "NOT met"
-        target = f" (target <= {SLOW_TARGET:g}: {verdict})" if trial.mode == ACTIVE else ""
+        target = f" (target <= {SLOW_TARGET:g}: {verdict})" if index == 0 else ""
         print(f"{label} / Motion at {SLOW_FPS:g} fps, CPU per frame: {fmt(ratio, 2)}{target}")
-    alarms = trials[0].alarms / sum(trial_frames for trial_frames in trials[0].frames)
     print(
-        f"  decoding and segmentation alone: {fmt(floor.ms / motion_ms, 2)} x Motion (decoding "
-        f"{fmt(floor.decode_ms, 2)} ms, denoising and segmentation {fmt(floor.segment_ms, 2)});"
-        f" alarms on {fmt(100 * alarms, 1)}% of the frames (each two JPEG snapshots and rows,"
-        " which Motion, pictures off, does not make)"
+        f"  decoding and segmentation alone: {fmt(floor.ms / motion_ms['off'], 2)} x Motion "
+        f"(decoding {fmt(floor.decode_ms, 2)} ms, denoising and segmentation "
+        f"{fmt(floor.segment_ms, 2)}); alarms on {fmt(100 * alarm_share[0], 1)}% of the frames "
+        "(each two JPEG snapshots and rows, which Motion, pictures off, does not make)"
     )
-    with_pictures = median(trials[0].ms_per_frame()) / median(pictured.ms_per_frame)
-    print(f"  Vigil activated / Motion saving a picture per event: {fmt(with_pictures, 2)}")
-    print_motion_problems(motion)
+    print(
+        "  Vigil activated / Motion saving a picture per event: "
+        f"{fmt(vigil_ms[0] / motion_ms['first'], 2)}"
+    )
+    # Motion's cost per picture saved (its "every" run over its "off" run), at the share of
+    # frames on which Vigil saved pictures: Motion saving what Vigil saves, as often.
+    every = runs["every"].pictures / motion_frames
+    if every > 0:
+        per_picture = (motion_ms["every"] - motion_ms["off"]) / every
+        as_vigil = motion_ms["off"] + per_picture * 2 * alarm_share[0]
+        print(
+            f"  Vigil activated / Motion saving as many pictures as Vigil: "
+            f"{fmt(vigil_ms[0] / as_vigil, 2)} (Motion {fmt(as_vigil, 2)} ms: its picture "
+            f"costs {fmt(per_picture, 2)} ms with its row, from its runs pictures off and on "
+            "every motion frame)"
+        )
+    print_motion_problems(runs["off"])
 
 
 def measure_at_load(
@@ -1370,6 +1426,7 @@ def parse_args(argv: Sequence[str] | None = None) -> argparse.Namespace:
     parser.add_argument("--repeat", type=int, default=None, help="windows of each CPU figure")
     parser.add_argument("--max-cameras", type=int, default=64, help="stop climbing here")
     parser.add_argument("--synthetic", action="store_true", help="synthetic scene, not footage")
+    parser.add_argument("--only", choices=["a3"], help="run this section alone")
     add_data_argument(parser)
     args = parser.parse_args(argv)
     quick = args.quick
@@ -1390,8 +1447,11 @@ def main(argv: Sequence[str] | None = None) -> None:
     with tempfile.TemporaryDirectory(prefix="vigil-cameras-") as tmp:
         clips, slow_clip, description = make_clips(args, Path(tmp))
         print(f"camera: {description}")
-        cpu = measure_cpu(args, clips, slow_clip, Path(tmp))
-        measure_cameras(args, clips, Path(tmp), cpu)
+        if args.only == "a3":
+            measure_slow(args, slow_clip, Path(tmp))
+        else:
+            cpu = measure_cpu(args, clips, slow_clip, Path(tmp))
+            measure_cameras(args, clips, Path(tmp), cpu)
     print(f"\ndone in {time.perf_counter() - started:.0f} s")
 
 

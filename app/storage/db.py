@@ -297,17 +297,33 @@ class Database:
     def add_snapshot(
         self, camera_id: int, event_id: int | None, ts: float, kind: str, path: str, size: int
     ) -> int:
-        return self._insert(
-            insert(snapshots).values(
-                camera_id=camera_id,
-                event_id=event_id,
-                ts=ts,
-                kind=kind,
-                path=path,
-                size=size,
-                node=self.node,
-            )
-        )
+        return self.add_snapshots(camera_id, event_id, ts, [(kind, path, size)])[0]
+
+    def add_snapshots(
+        self,
+        camera_id: int,
+        event_id: int | None,
+        ts: float,
+        pictures: Sequence[tuple[str, str, int]],
+    ) -> list[int]:
+        """Rows of pictures taken together, each (kind, path, size), in one transaction (one
+        commit: an alarm's frame and difference picture); their ids, in that order."""
+        ids = []
+        with self.transaction() as conn:
+            for kind, path, size in pictures:
+                statement = insert(snapshots).values(
+                    camera_id=camera_id,
+                    event_id=event_id,
+                    ts=ts,
+                    kind=kind,
+                    path=path,
+                    size=size,
+                    node=self.node,
+                )
+                key = conn.execute(statement).inserted_primary_key
+                assert key is not None
+                ids.append(int(key[0]))
+        return ids
 
     def snapshots(
         self,

@@ -190,16 +190,17 @@ def test_north_serves_south_cameras_pictures_snapshots_and_clips(site: Site) -> 
             *(south / "clips" / str(camera)).rglob(f"*-e{event['id']}.mp4"),
         ]
 
-    assert len(files_on_south()) == 3  # The frame, the difference picture and the clip.
+    kept = [p.suffix for p in files_on_south()]  # Two pictures an alarm, and the clip.
+    assert kept.count(".jpg") >= 2 and kept.count(".mp4") == 1
     deleted = httpx.delete(f"{site.north}/api/events/{event['id']}", auth=AUTH)
     assert deleted.json()["deleted"] == [event["id"]]
     wait_for(lambda: not files_on_south(), 10, "south to delete the event's files")
     assert site.get("north", path).status_code == 404
 
     # South goes: north says at once what it cannot serve, and why.
-    kept = _recorded_event(site, camera)["snapshot"]
+    other = _recorded_event(site, camera)["snapshot"]
     site.servers["south"].stop()
-    gone = site.get("north", kept)
+    gone = site.get("north", other)
     assert gone.status_code in (502, 503)
     assert "node south" in gone.json()["detail"]
     assert site.get("north", f"/api/cameras/{camera}/frame.jpg").status_code in (502, 503)

@@ -201,28 +201,20 @@ async def _output(
     return await run_in_threadpool(answer, path)
 
 
+def _file(media_type: str, filename: str | None = None) -> Callable[[Path], Response]:
+    return lambda path: FileResponse(path, media_type=media_type, filename=filename)
+
+
 @router.get("/{analysis_id}/tracks.csv")
 async def tracks(request: Request, analysis_id: str) -> Response:
-    return await _output(
-        request,
-        analysis_id,
-        "tracks.csv",
-        lambda path: FileResponse(
-            path, media_type="text/csv", filename=f"tracks-{analysis_id}.csv"
-        ),
-    )
+    csv = _file("text/csv", f"tracks-{analysis_id}.csv")
+    return await _output(request, analysis_id, "tracks.csv", csv)
 
 
 @router.get("/{analysis_id}/annotated.avi")
 async def annotated(request: Request, analysis_id: str) -> Response:
-    return await _output(
-        request,
-        analysis_id,
-        "annotated.avi",
-        lambda path: FileResponse(
-            path, media_type="video/x-msvideo", filename=f"annotated-{analysis_id}.avi"
-        ),
-    )
+    avi = _file("video/x-msvideo", f"annotated-{analysis_id}.avi")
+    return await _output(request, analysis_id, "annotated.avi", avi)
 
 
 @router.get("/{analysis_id}/annotated.mp4")
@@ -250,12 +242,7 @@ async def report(request: Request, analysis_id: str) -> Response:
 
 @router.get("/{analysis_id}/report.html")
 async def report_html(request: Request, analysis_id: str) -> Response:
-    return await _output(
-        request,
-        analysis_id,
-        "report.html",
-        lambda path: FileResponse(path, media_type="text/html"),
-    )
+    return await _output(request, analysis_id, "report.html", _file("text/html"))
 
 
 @router.get("/{analysis_id}/stream.mjpg")

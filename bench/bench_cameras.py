@@ -22,7 +22,7 @@ nothing is drawn on it).
     and, as a floor, decoding and segmentation alone (the default method, paced).
 (a2) CPU per frame at load: 8 activated cameras in one worker process (OpenCV
     1 thread), and Motion with the same 8 cameras in one daemon.
-    ``--only a3``: that section alone (about a minute).
+    ``--only a3``: that section alone (about 3 minutes).
 (b) The largest number N of activated cameras for which every camera runs
     detection on >= 24 frames per second over the measured window (and, with
     a viewer, every viewer gets >= 24 pictures a second), with the

@@ -269,7 +269,7 @@ class AccessControl:
 
     OPEN = frozenset({"/api/health", "/login", "/api/login", "/api/logout", "/favicon.ico"})
 
-    def __init__(self, app: ASGIApp, access: Access, relay_token: str = "") -> None:
+    def __init__(self, app: ASGIApp, access: Access, relay_token: str) -> None:
         self.app = app
         self.access = access
         self.relay_token = relay_token.encode()

@@ -75,7 +75,6 @@ def run(folder: Path, args: argparse.Namespace) -> None:
             "VIGIL_CLIPS": "false",
         }
         ports = {name: free_port() for name in ("south", "north")}
-        nodes: dict[str, Node] = {}
         bases: dict[str, str] = {}
         with (
             serve_process(folder / "south", port=ports["south"], VIGIL_NODE_NAME="south", **env)

@@ -89,6 +89,8 @@ class Relay:
         self._peers: dict[str, Peer] = {}
         self._read_at = -PEERS_TTL_S
         self._client: httpx.AsyncClient | None = None
+        self._fetcher = httpx.Client(follow_redirects=False, trust_env=False)
+        """For whole small answers, from threads: one pool, not a connection a snapshot."""
         self._statuses: dict[str, tuple[float, dict[int, dict[str, Any]]]] = {}
 
     def peer(self, name: str) -> Peer:
@@ -124,6 +126,7 @@ class Relay:
         return self._client
 
     async def close(self) -> None:
+        self._fetcher.close()
         if self._client is not None:
             await self._client.aclose()
 
@@ -156,6 +159,8 @@ class Relay:
             _body(answer),
             status_code=answer.status_code,
             headers=passed,
+            # The body closes it at its end; this, when the client went first (the body
+            # is then dropped unfinished).
             background=BackgroundTask(answer.aclose),
         )
 
@@ -180,11 +185,10 @@ class Relay:
         """A small answer (a snapshot) from ``node``, whole; None when it cannot be had."""
         try:
             peer = self.peer(node)
-            answer = httpx.get(
+            answer = self._fetcher.get(
                 peer.url + path,
                 headers=self.headers(peer),
                 timeout=httpx.Timeout(timeout_s, connect=CONNECT_S),
-                trust_env=False,
             )
         except (NotRelayableError, httpx.HTTPError) as failed:
             log.info("could not fetch %s from node %s: %s", path, node, failed)

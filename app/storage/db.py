@@ -161,9 +161,7 @@ class Database:
 
     def _insert(self, statement: Insert) -> int:
         with self.transaction() as conn:
-            key = conn.execute(statement).inserted_primary_key
-        assert key is not None
-        return int(key[0])
+            return _inserted_id(conn, statement)
 
     # Cameras -------------------------------------------------------------------------------
 
@@ -320,9 +318,7 @@ class Database:
                     size=size,
                     node=self.node,
                 )
-                key = conn.execute(statement).inserted_primary_key
-                assert key is not None
-                ids.append(int(key[0]))
+                ids.append(_inserted_id(conn, statement))
         return ids
 
     def snapshots(
@@ -763,6 +759,12 @@ def _activity_cameras() -> Select[Any]:
     following = select(func.min(a.camera_id)).where(a.camera_id > first.c.id)
     walk = first.union_all(select(following.scalar_subquery()).where(first.c.id.is_not(None)))
     return select(walk.c.id).where(walk.c.id.is_not(None))
+
+
+def _inserted_id(conn: Connection, statement: Insert) -> int:
+    key = conn.execute(statement).inserted_primary_key
+    assert key is not None
+    return int(key[0])
 
 
 def _limit(limit: int) -> int:

@@ -28,6 +28,7 @@ import signal
 import threading
 import time
 from multiprocessing.connection import Connection
+from multiprocessing.reduction import DupFd
 from typing import Any, Protocol
 
 import cv2
@@ -80,6 +81,21 @@ class Camera(Protocol):
     def update(self, **changes: Any) -> None: ...
 
 
+class _Inherited:
+    """A file descriptor of the server's for a process it starts: an int there, the same
+    file duplicated into it when pickled for the start."""
+
+    def __init__(self, fd: int) -> None:
+        self.fd = fd
+
+    def __reduce__(self) -> tuple[Any, tuple[Any, ...]]:
+        return (_detach, (DupFd(self.fd),))
+
+
+def _detach(duplicate: Any) -> int:
+    return int(duplicate.detach())
+
+
 # --- the camera process --------------------------------------------------------------------
 
 
@@ -98,9 +114,18 @@ class _WorkerLink:
         self._link.send(("message", self._generation, message.wire()))
 
 
-def run_cameras(conn: Connection, settings: Settings, live_conn: Connection | None = None) -> None:
+def run_cameras(
+    conn: Connection,
+    settings: Settings,
+    live_conn: Connection | None = None,
+    stderr: int | None = None,
+) -> None:
     """The camera process: run the cameras the server sends until it says exit or is gone.
-    ``live_conn``: the live pipe's writing end (/ws/live messages)."""
+    ``live_conn``: the live pipe's writing end (/ws/live messages); ``stderr``: the
+    server's, to log to (a forked process has its forkserver's, as it was at its start)."""
+    if stderr is not None:
+        os.dup2(stderr, 2)
+        os.close(stderr)
     # Ctrl-C reaches the whole process group; the server decides when cameras stop. A
     # SIGTERM to the group (systemd) stops cleanly: open events end, exit status 0.
     signal.signal(signal.SIGINT, signal.SIG_IGN)
@@ -294,12 +319,12 @@ class CameraProcess:
         self._process: multiprocessing.process.BaseProcess | None = None
 
     def start(self) -> None:
-        context = multiprocessing.get_context("spawn")  # No fork of a threaded server.
+        context = _camera_context()
         ours, theirs = context.Pipe()
         live_ours, live_theirs = context.Pipe(duplex=False)
         process = context.Process(
             target=run_cameras,
-            args=(theirs, self.settings, live_theirs),
+            args=(theirs, self.settings, live_theirs, _Inherited(2)),
             name=f"vigil-cameras-{self.index}",
             daemon=True,
         )
@@ -420,6 +445,14 @@ class CameraProcess:
             self.bus.publish(camera.reported(CameraStatus(**down).wire()))
         if not self._stopping.wait(RESTART_DELAY_S):
             self.start()
+
+
+def _camera_context() -> multiprocessing.context.ForkServerContext:
+    """Camera processes are forked from a forkserver that has imported what they run
+    (``app.workers.camera_forkserver``): never forked from the threaded server itself."""
+    context = multiprocessing.get_context("forkserver")
+    context.set_forkserver_preload(["app.workers.camera_forkserver"])
+    return context
 
 
 def _exit_reason(exitcode: int | None) -> str:

@@ -19,11 +19,14 @@ def _camera(base: str, cam: int) -> dict:
 
 
 def _camera_processes() -> list[psutil.Process]:
-    """This test process's children that run cameras (uvicorn runs in a thread here)."""
+    """The camera processes of the servers this test process runs (uvicorn runs in a
+    thread here): the children of its forkserver."""
     return [
-        child
+        camera
         for child in psutil.Process().children()
-        if "spawn_main" in " ".join(child.cmdline()) and child.is_running()
+        if "forkserver" in " ".join(child.cmdline())
+        for camera in child.children()
+        if camera.is_running()
     ]
 
 

@@ -49,16 +49,22 @@ LIVE_WIDTH = 640
 """The width a viewer asks for: a card on a page, at most the camera's 640."""
 
 
-def children(pid: int) -> list[int]:
-    """Every process whose parent is ``pid`` (the server's camera processes)."""
-    found = []
+def descendants(pid: int) -> list[int]:
+    """Every descendant of ``pid``: the server's camera processes (children of its
+    forkserver) and the rest."""
+    parents: dict[int, int] = {}
     for entry in Path("/proc").iterdir():
         if not entry.name.isdigit():
             continue
         with contextlib.suppress(OSError, IndexError, ValueError):
             stat = (entry / "stat").read_text()
-            if int(stat.rsplit(")", 1)[1].split()[1]) == pid:
-                found.append(int(entry.name))
+            parents[int(entry.name)] = int(stat.rsplit(")", 1)[1].split()[1])
+    found: list[int] = []
+    frontier = [pid]
+    while frontier:
+        below = [child for child, parent in parents.items() if parent in frontier]
+        found += below
+        frontier = below
     return found
 
 
@@ -151,7 +157,7 @@ class Server:
 
     def cpu_seconds(self) -> float:
         """The server's CPU time and its camera processes' (all threads)."""
-        pids = [self.process.pid, *children(self.process.pid)]
+        pids = [self.process.pid, *descendants(self.process.pid)]
         total = 0.0
         for pid in pids:
             with contextlib.suppress(OSError):
@@ -437,7 +443,7 @@ def run_served(
                 if delay > 0:
                     time.sleep(delay)
                 counts = watching.counts()[0] if watching is not None else [0] * len(ids)
-                pids = children(server.process.pid)
+                pids = descendants(server.process.pid)
                 camera_cpu = sum(_cpu_or_zero(pid) for pid in pids)
                 server_cpu = _cpu_or_zero(server.process.pid)
                 samples.append(

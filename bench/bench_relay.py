@@ -30,7 +30,7 @@ from pathlib import Path
 
 import httpx
 from _common import add_data_argument, bench_lock, fmt, median, print_environment, print_table
-from _served import children, cpu_seconds, viewers
+from _served import cpu_seconds, descendants, viewers
 from bench_pipeline import load_footage, resized, write_mjpg
 
 from tests.api.vigil_livekit import add_camera, free_port, serve_process, wait_for
@@ -119,7 +119,7 @@ def measure(
 ) -> list[float]:
     """[frames/s, south server, south camera process, north server] ms a frame, medians."""
     south = nodes["south"].pid
-    processes = {"south": [south], "camera": children(south), "north": [nodes["north"].pid]}
+    processes = {"south": [south], "camera": descendants(south), "north": [nodes["north"].pid]}
     samples: dict[str, list[float]] = {"fps": [], "south": [], "camera": [], "north": []}
     with viewers(nodes[reader_on].port, "live", [camera]) as reader:
         time.sleep(WARMUP_S)

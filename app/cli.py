@@ -385,7 +385,7 @@ def _serve(args: argparse.Namespace) -> int:
         return _fail("serve", failed)
     import uvicorn
 
-    from app.api.app import create_app
+    from app.api.app import SERVER_OPTIONS, create_app
 
     try:
         application = create_app(settings)
@@ -395,9 +395,9 @@ def _serve(args: argparse.Namespace) -> int:
         application,
         host=settings.host,
         port=settings.port,
-        ws="websockets-sansio",
         timeout_graceful_shutdown=3,
         log_level="info",
+        **SERVER_OPTIONS,
     )
     return 0
 

@@ -46,6 +46,9 @@ REPO = Path(__file__).resolve().parent.parent
 STATUS_INTERVAL_S = 0.5
 START_TIMEOUT_S = 60.0
 LIVE_WIDTH = 640
+BROWSER_EXTENSIONS = "permessage-deflate; client_max_window_bits"
+"""What Chromium and Firefox offer on every WebSocket: a server that takes it compresses
+each frame it sends (a viewer's frames are counted, never inflated)."""
 """The width a viewer asks for: a card on a page, at most the camera's 640."""
 
 
@@ -243,6 +246,7 @@ class _LiveReader:
             (
                 f"GET /ws/live HTTP/1.1\r\nHost: 127.0.0.1:{port}\r\nUpgrade: websocket\r\n"
                 f"Connection: Upgrade\r\nSec-WebSocket-Key: {key}\r\n"
+                f"Sec-WebSocket-Extensions: {BROWSER_EXTENSIONS}\r\n"
                 "Sec-WebSocket-Version: 13\r\n\r\n"
             ).encode()
         )

@@ -53,6 +53,13 @@ class LiveViewer:
         self._stack.close()
         self._thread.join(5)
 
+    @property
+    def extensions(self) -> list[str]:
+        """The extensions the server took of those offered: websockets' client offers
+        permessage-deflate, as every browser does."""
+        assert self._socket is not None
+        return [extension.name for extension in self._socket.protocol.extensions]
+
     def watch(self, cameras: list[int], width: int = 640) -> None:
         assert self._socket is not None
         self._socket.send(watch_message(cameras, width))

@@ -27,7 +27,7 @@ import numpy as np
 import uvicorn
 import websockets
 
-from app.api.app import create_app
+from app.api.app import SERVER_OPTIONS, create_app
 from app.core.config import Settings
 
 WIDTH, HEIGHT, FPS = 320, 240, 15.0
@@ -275,10 +275,10 @@ def running_server(settings: Settings, port: int = 0, graceful_s: int = 3) -> It
     port = sock.getsockname()[1]
     config = uvicorn.Config(
         create_app(settings),
-        ws="websockets-sansio",
         log_level="warning",
         timeout_graceful_shutdown=graceful_s,
         lifespan="on",
+        **SERVER_OPTIONS,
     )
     server = uvicorn.Server(config)
     thread = threading.Thread(target=server.run, kwargs={"sockets": [sock]}, daemon=True)

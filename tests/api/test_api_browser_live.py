@@ -92,11 +92,10 @@ def test_sixteen_cameras_on_a_wall_each_at_its_rate_with_boxes_on_the_moving_obj
         (after - first) / (time.monotonic() - started)
         for first, after in zip(before, page.evaluate(DRAWN, ids), strict=True)
     ]
-    # The issue asks for 10 a second each; on a 2-core machine running the sixteen cameras,
-    # their server and Chromium, the median camera reads 10 to 16 and the least 8.6 to 14
-    # (issue 30's note): each camera's pictures must keep coming, most near their rate.
-    assert statistics.median(rates) >= 9, f"frames drawn a second per camera: {rates}"
-    assert min(rates) >= 6, f"frames drawn a second per camera: {rates}"
+    # At least 10 a second each, as issue 30 asks. On a 2-core machine running the sixteen
+    # cameras, their server and Chromium, the least reads 12.2 to 13.9 (eight runs) since
+    # the server stopped deflating every frame, 8.6 to 14 before.
+    assert min(rates) >= 10, f"frames drawn a second per camera: {rates}"
 
     samples = []
     for _ in range(12):

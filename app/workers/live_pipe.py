@@ -99,6 +99,9 @@ class LivePipeReader:
         self._deliver = deliver
         self._loop = loop
         self._buffer = bytearray()
+        self._chunk = memoryview(bytearray(READ_BYTES))
+        """Where each read lands: a bytes object of READ_BYTES made for every read cost
+        a mapping of fresh pages and its unmapping, at every frame."""
         self._closed = False
         if loop is not None:
             os.set_blocking(self._fd, False)
@@ -114,13 +117,13 @@ class LivePipeReader:
     def _readable(self) -> None:
         """What the pipe holds now; at its end (the camera process gone), stop."""
         try:
-            data = os.read(self._fd, READ_BYTES)
+            read = os.readv(self._fd, [self._chunk])
         except BlockingIOError:
             return
         except OSError:
-            data = b""
-        if data:
-            self._feed(data)
+            read = 0
+        if read:
+            self._feed(self._chunk[:read])
         else:
             self._detach()
 
@@ -128,21 +131,23 @@ class LivePipeReader:
         while not self._closed:
             self._readable()
 
-    def _feed(self, data: bytes) -> None:
+    def _feed(self, data: memoryview) -> None:
         buffer = self._buffer
         buffer += data
+        view = memoryview(buffer)
         at = 0
         while len(buffer) - at >= HEAD.size:
             length, generation, camera_id = HEAD.unpack_from(buffer, at)
             end = at + HEAD.size + length
             if end > len(buffer):
                 break
-            message = bytes(buffer[at + HEAD.size : end])
+            message = bytes(view[at + HEAD.size : end])
             at = end
             try:
                 self._deliver(camera_id, generation, message)
             except Exception:  # One client's failure must not stop every camera's frames.
                 log.exception("camera %s: a live frame could not be handed on", camera_id)
+        view.release()  # A bytearray with a view of it cannot shrink.
         del buffer[:at]
 
     def _detach(self) -> None:

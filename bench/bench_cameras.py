@@ -1,7 +1,7 @@
 """How many live cameras one machine sustains with Vigil's camera workers; CPU beside Motion.
 
     python bench/bench_cameras.py [--quick] [--warmup S] [--window S] [--repeat R]
-                                  [--max-cameras N] [--data DIR] [--synthetic] [--only a3]
+                                  [--max-cameras N] [--data DIR] [--synthetic] [--only a|a3]
 
 Every camera is Vigil's own ``app.workers.camera.CameraWorker`` reading a
 looping 640x480 25 fps MJPG AVI (``file://CLIP``): it takes the file's JPEGs
@@ -22,7 +22,7 @@ nothing is drawn on it).
     and, as a floor, decoding and segmentation alone (the default method, paced).
 (a2) CPU per frame at load: 8 activated cameras in one worker process (OpenCV
     1 thread), and Motion with the same 8 cameras in one daemon.
-    ``--only a3``: that section alone (about 3 minutes).
+    ``--only a3``: that section alone (about 3 minutes); ``--only a``: (a) alone.
 (b) The largest number N of activated cameras for which every camera runs
     detection on >= 24 frames per second over the measured window (and, with
     a viewer, every viewer gets >= 24 pictures a second), with the
@@ -39,6 +39,7 @@ from __future__ import annotations
 import argparse
 import asyncio
 import contextlib
+import dataclasses
 import itertools
 import math
 import multiprocessing as mp
@@ -157,6 +158,10 @@ SERVED_MJPEG = Mode(activated=True, watched=True, served=True)
 SERVED_IDLE = Mode(activated=False, watched=False, served=True)
 SERVED_IDLE_PAGE = Mode(activated=False, watched=True, viewer="live", served=True)
 SERVED_MODES = (SERVED_ACTIVE, SERVED_PAGE, SERVED_MJPEG, SERVED_IDLE, SERVED_IDLE_PAGE)
+SERVED_ROUNDS = 3
+"""Trials of each served mode, the modes' order turned each round. One trial's CPU per
+frame moved with the moment more than a page adds: the same camera unwatched, 1.68 and
+2.18 ms in two trials of one server, a page's trials between them."""
 """The rows of table (a) from a real server (one camera process), in the order they run."""
 VIEWER_TARGET = 1.15
 """A page viewer's camera: at most this times the CPU per frame of the camera unwatched."""
@@ -772,9 +777,26 @@ def served_trial(
 
 
 def measure_served_paced(clip: Path, folder: Path, windows: Windows) -> list[ServedRow]:
-    """Every mode of SERVED_MODES: one camera in ``vigil serve`` with one camera process."""
+    """Every mode of SERVED_MODES: one camera in ``vigil serve`` with one camera process,
+    in SERVED_ROUNDS rounds, each in another order; a mode's row is over all its windows."""
+    runs: dict[Mode, list[tuple[Trial, list[float]]]] = {mode: [] for mode in SERVED_MODES}
     with _served.served(1, folder) as server:
-        return [ServedRow(*served_trial(server, [clip], mode, windows)) for mode in SERVED_MODES]
+        for turn in range(SERVED_ROUNDS):
+            for mode in SERVED_MODES[turn:] + SERVED_MODES[:turn]:
+                runs[mode].append(served_trial(server, [clip], mode, windows))
+    return [
+        ServedRow(merged([trial for trial, _ in found]), [ms for _, c in found for ms in c])
+        for found in runs.values()
+    ]
+
+
+def merged(trials: Sequence[Trial]) -> Trial:
+    """The trials of one mode as one: their windows together, their alarms summed."""
+    joined: dict[str, Any] = {"mode": trials[0].mode, "alarms": sum(t.alarms for t in trials)}
+    for field in dataclasses.fields(Trial):
+        if field.name not in joined:
+            joined[field.name] = [w for t in trials for w in getattr(t, field.name)]
+    return Trial(**joined)
 
 
 def median_fps(series: list[list[float]]) -> float:
@@ -872,21 +894,31 @@ class CpuFigures:
     """The same in ``vigil serve`` with a /ws/live viewer (a page)."""
 
 
-def measure_cpu(
-    args: argparse.Namespace, clips: Sequence[Path], slow_clip: Path, tmp: Path
-) -> CpuFigures:
-    """Sections (a), (a2) and (a3); returns the figures that seed section (b)'s search."""
+def measure_one_camera(
+    args: argparse.Namespace, clips: Sequence[Path], tmp: Path
+) -> tuple[list[PacedRow], list[ServedRow]]:
+    """Section (a), printed."""
     windows = Windows(args.warmup, args.cpu_window, args.repeat)
     paced = measure_paced(clips[0], tmp, windows)
     # Frames in the server are counted from its status messages, one each STATUS_INTERVAL_S:
     # windows of at least 3 s.
-    served_windows = Windows(args.warmup, max(args.cpu_window, 3.0), args.repeat)
+    per_round = max(1, math.ceil(args.repeat / SERVED_ROUNDS))
+    served_windows = Windows(args.warmup, max(args.cpu_window, 3.0), per_round)
     served = measure_served_paced(clips[0], tmp, served_windows)
     floor = measure_floor(clips[0], windows)
     motion: MotionRun | None = None
     if MOTION.is_file():
         motion = measure_motion(clips[:1], tmp, windows)
     print_paced(args, paced, served, motion, floor)
+    return paced, served
+
+
+def measure_cpu(
+    args: argparse.Namespace, clips: Sequence[Path], slow_clip: Path, tmp: Path
+) -> CpuFigures:
+    """Sections (a), (a2) and (a3); returns the figures that seed section (b)'s search."""
+    paced, served = measure_one_camera(args, clips, tmp)
+    windows = Windows(args.warmup, args.cpu_window, args.repeat)
     measure_at_load(args, clips, tmp, windows)
     measure_slow(args, slow_clip, tmp)
     one = {row.trial.mode: row for row in paced if row.cv_threads == 1}
@@ -1119,7 +1151,8 @@ def print_paced(
             "    ms CPU/frame: worker process CPU (all threads) / frames read; Motion's frames"
             f" = window x {FPS:g}\n    (its read fps: clip bytes it read / bytes per frame, a"
             " check)\n    vigil serve: the server's CPU and its camera process's (all threads)"
-            " / frames read\n    x Motion: the row's ms/frame divided by Motion's"
+            f" / frames read, the median of {SERVED_ROUNDS} trials' windows, the modes in turn"
+            "\n    x Motion: the row's ms/frame divided by Motion's"
             " (above 1 = costs more); Motion detects 3 of the 25 frames a second, see (a3)"
         ),
     )
@@ -1426,7 +1459,7 @@ def parse_args(argv: Sequence[str] | None = None) -> argparse.Namespace:
     parser.add_argument("--repeat", type=int, default=None, help="windows of each CPU figure")
     parser.add_argument("--max-cameras", type=int, default=64, help="stop climbing here")
     parser.add_argument("--synthetic", action="store_true", help="synthetic scene, not footage")
-    parser.add_argument("--only", choices=["a3"], help="run this section alone")
+    parser.add_argument("--only", choices=["a", "a3"], help="run this section alone")
     add_data_argument(parser)
     args = parser.parse_args(argv)
     quick = args.quick
@@ -1447,7 +1480,9 @@ def main(argv: Sequence[str] | None = None) -> None:
     with tempfile.TemporaryDirectory(prefix="vigil-cameras-") as tmp:
         clips, slow_clip, description = make_clips(args, Path(tmp))
         print(f"camera: {description}")
-        if args.only == "a3":
+        if args.only == "a":
+            measure_one_camera(args, clips, Path(tmp))
+        elif args.only == "a3":
             measure_slow(args, slow_clip, Path(tmp))
         else:
             cpu = measure_cpu(args, clips, slow_clip, Path(tmp))

@@ -96,6 +96,15 @@ def _detach(duplicate: Any) -> int:
     return int(duplicate.detach())
 
 
+def _stderr() -> _Inherited | None:
+    """The server's stderr for a camera process, if it has one open."""
+    try:
+        os.fstat(2)
+    except OSError:
+        return None
+    return _Inherited(2)
+
+
 # --- the camera process --------------------------------------------------------------------
 
 
@@ -324,7 +333,7 @@ class CameraProcess:
         live_ours, live_theirs = context.Pipe(duplex=False)
         process = context.Process(
             target=run_cameras,
-            args=(theirs, self.settings, live_theirs, _Inherited(2)),
+            args=(theirs, self.settings, live_theirs, _stderr()),
             name=f"vigil-cameras-{self.index}",
             daemon=True,
         )

@@ -43,7 +43,7 @@ SERVER_OPTIONS: dict[str, Any] = {
     # least CPU on a frame.
     "ws": "websockets-sansio",
     # No permessage-deflate, which every browser asks for: it deflated each /ws/live JPEG
-    # (compressed already) again, 0.38 ms of the server's CPU a 640x480 frame, for
+    # (compressed already) again, about 0.4 ms of the server's CPU a 640x480 frame, for
     # nothing (bench/profile_viewer.py). /ws's JSON messages are small.
     "ws_per_message_deflate": False,
 }

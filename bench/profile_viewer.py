@@ -1,13 +1,13 @@
-"""Where a page viewer's CPU goes: one activated camera in ``vigil serve``, by thread.
+"""Where a page viewer's CPU goes: one activated camera in ``vigil serve``, by process.
 
     python bench/profile_viewer.py [--seconds S] [--rounds R] [--perf] [--data DIR] [--synthetic]
 
 The camera of ``bench_cameras.py``'s (a) (the looping 640x480 25 fps MJPG clip) in a real
 ``vigil serve`` with one camera process, activated. Alternately unwatched and with one
 /ws/live viewer (a raw socket in another process, as ``bench_cameras.py`` reads), R rounds
-of S seconds each (default 3 of 10), it counts each thread's CPU of the server and of its
-camera process (``/proc/PID/task/TID/schedstat``), per frame the camera read, and prints
-the median of the rounds by thread, and what the viewer adds.
+of S seconds each (default 3 of 10), it counts the CPU of the server and of its camera
+process (every thread's, ``_served.cpu_seconds``), per frame the camera read, and prints
+the median of the rounds for each, and what the viewer adds.
 
 ``--perf``: also ``perf record`` each process during the last round of each mode and
 print the symbols that took the most of its samples (the kernel's, Python's and the
@@ -22,34 +22,15 @@ import statistics
 import subprocess
 import tempfile
 import time
-from collections import defaultdict
 from collections.abc import Iterator
 from pathlib import Path
 
 from _common import add_data_argument, print_environment, print_table
-from _served import Server, descendants, viewers
+from _served import Server, cpu_seconds, descendants, viewers
 from bench_cameras import make_clips
 
 SETTLE_S = 3.0
 PERF_TOP = 25
-
-
-def thread_cpu(pid: int) -> dict[str, float]:
-    """CPU seconds of each thread of ``pid`` by thread name (threads of one name summed)."""
-    found: dict[str, float] = defaultdict(float)
-    for task in Path(f"/proc/{pid}/task").iterdir():
-        with contextlib.suppress(OSError, ValueError, IndexError):
-            name = (task / "comm").read_text().strip()
-            found[name] += int((task / "schedstat").read_text().split()[0]) / 1e9
-    return found
-
-
-def snapshot(processes: dict[str, int]) -> dict[str, float]:
-    return {
-        f"{role}: {name}": seconds
-        for role, pid in processes.items()
-        for name, seconds in thread_cpu(pid).items()
-    }
 
 
 @contextlib.contextmanager
@@ -93,25 +74,28 @@ def perf_top(path: Path) -> str:
 
 def measure(
     server: Server, camera_id: int, watched: bool, seconds: float, perf: Path | None
-) -> tuple[dict[str, float], float]:
-    """CPU seconds by thread over ``seconds``, and the frames the camera read meanwhile."""
-    pids = {"server": server.process.pid}
-    camera_pids = [pid for pid in descendants(server.process.pid) if thread_cpu(pid)]
-    # The camera process is the one descendant that works (the forkserver only waits).
-    pids["camera"] = max(camera_pids, key=lambda pid: sum(thread_cpu(pid).values()))
+) -> tuple[dict[str, float], int]:
+    """CPU seconds of the server and of its camera process over ``seconds``, and the
+    frames the camera read meanwhile."""
+    # The camera process is the descendant that works now (its forkserver only waits,
+    # having spent its CPU on imports at the start).
+    found = {pid: cpu_seconds(pid) for pid in descendants(server.process.pid)}
+    time.sleep(0.5)
+    camera = max(found, key=lambda pid: cpu_seconds(pid) - found[pid])
+    pids = {"server": server.process.pid, "camera": camera}
     with viewers(server.port, "live", [camera_id]) if watched else contextlib.nullcontext():
         time.sleep(SETTLE_S)
         label = "watched" if watched else "unwatched"
         recording = perf_recording(pids, perf, label) if perf else contextlib.nullcontext()
         with recording:
-            before, start = snapshot(pids), time.monotonic()
+            before = {role: cpu_seconds(pid) for role, pid in pids.items()}
             frames_before = (server.statuses.latest(camera_id) or {}).get("frames", 0)
             time.sleep(seconds)
-            after, end = snapshot(pids), time.monotonic()
+            after = {role: cpu_seconds(pid) for role, pid in pids.items()}
             frames_after = (server.statuses.latest(camera_id) or {}).get("frames", 0)
-    used = {name: after[name] - before.get(name, 0.0) for name in after}
-    frames = frames_after - frames_before or 25.0 * (end - start)
-    return used, frames
+    if frames_after <= frames_before:
+        raise SystemExit("the camera read no frame in a round")
+    return {role: after[role] - before[role] for role in pids}, frames_after - frames_before
 
 
 def main() -> None:
@@ -141,22 +125,18 @@ def main() -> None:
                         per_frame[mode].setdefault(name, []).append(1000 * seconds / frames)
         finally:
             server.close()
-        names = sorted(set(per_frame["unwatched"]) | set(per_frame["watched"]))
         rows = []
         totals = dict.fromkeys(per_frame, 0.0)
-        for name in names:
-            cells = []
-            for mode, by_name in per_frame.items():
-                value = statistics.median(by_name.get(name, [0.0]))
+        for role in ("camera", "server"):
+            cells = [statistics.median(by_role[role]) for by_role in per_frame.values()]
+            for mode, value in zip(per_frame, cells, strict=True):
                 totals[mode] += value
-                cells.append(value)
-            if max(cells) >= 0.005:
-                rows.append([name, *(f"{c:.3f}" for c in cells), f"{cells[1] - cells[0]:+.3f}"])
+            rows.append([role, *(f"{c:.3f}" for c in cells), f"{cells[1] - cells[0]:+.3f}"])
         rows.append(["all", *(f"{totals[m]:.3f}" for m in per_frame),
                      f"{totals['watched'] - totals['unwatched']:+.3f}"])  # fmt: skip
         print_table(
             f"ms CPU per frame read, median of {args.rounds} rounds of {args.seconds:g} s",
-            ["process: thread", "unwatched", "one /ws/live viewer", "viewer adds"],
+            ["process", "unwatched", "one /ws/live viewer", "viewer adds"],
             rows,
         )
         print(f"viewer / unwatched: {totals['watched'] / totals['unwatched']:.2f} x")

@@ -143,6 +143,17 @@ MASKED = """([id, truths]) => {
 }"""
 
 
+# Each canvas's size in pixels as each frame is drawn, read as it is drawn (a mutation
+# observer runs before the page lays out again): a frame drawn on a canvas of no size
+# shows only after a later layout redraws it.
+SIZES_WATCH = """() => {
+  window.drawnSizes = [];
+  new MutationObserver(records => {
+    for (const { target } of records) window.drawnSizes.push([target.width, target.height]);
+  }).observe(document.body, { subtree: true, attributeFilter: ['data-drawn'] });
+}"""
+
+
 def test_the_mask_is_tinted_and_the_zones_laid_exactly_over_the_picture(
     serve: Callable[..., Running], page: Any, motion_video: Path
 ) -> None:
@@ -152,6 +163,7 @@ def test_the_mask_is_tinted_and_the_zones_laid_exactly_over_the_picture(
     settings = {"show_mask": True, "mask": [zone]}
     httpx.patch(f"{server.base}/api/cameras/{cam}", json=settings).raise_for_status()
     page.goto(server.base + "/")
+    page.evaluate(SIZES_WATCH)
     truths = [square_box(index) for index in range(LOOP)]
     reddish = seen = 0
     for _ in range(60):
@@ -165,6 +177,10 @@ def test_the_mask_is_tinted_and_the_zones_laid_exactly_over_the_picture(
         reddish += r > 200 and g < 160 and b < 160
         assert shown["layer"] == pytest.approx(shown["picture"], abs=1.5), "zones misplaced"
     assert seen >= 5 and reddish >= 0.6 * seen, f"{reddish} of {seen} tinted red"
+    sizes = page.evaluate("window.drawnSizes")
+    assert sizes and all(w > 0 and h > 0 for w, h in sizes), (
+        f"{sum(0 in s for s in sizes)} of {len(sizes)} frames drawn at no size"
+    )
 
 
 # Headless Chromium keeps every tab visible (minimising its window or bringing another

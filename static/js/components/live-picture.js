@@ -57,7 +57,8 @@ function label(detection) {
 }
 
 export class LivePicture {
-  /* canvas: where frames are drawn; onFrame(header): after each frame is drawn. */
+  /* canvas: where frames are drawn; onFrame(header): as each frame is shown, just before
+     it is drawn. */
   constructor(canvas, onFrame = () => {}) {
     this.canvas = canvas;
     this.context = canvas.getContext("2d");
@@ -102,12 +103,14 @@ export class LivePicture {
     const before = this.frame;
     this.frame = frame;
     if (before) before.bitmap.close();
+    // First the card's say (a card hides its canvas until the first frame): drawn on a
+    // hidden canvas, the frame would have no size until the next layout redrew it.
+    this.onFrame(frame.header);
     this.draw();
     this.drawn += 1;
     this.canvas.dataset.frame = frame.header.frame;
     this.canvas.dataset.drawn = this.drawn;
     this.canvas.liveHeader = frame.header;  // What is drawn, for a test or the console to read.
-    this.onFrame(frame.header);
   }
 
   /* No picture until the next frame. */

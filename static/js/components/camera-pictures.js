@@ -22,7 +22,7 @@ export class CameraPictures {
     this.live = new LivePicture($(".live", card), (header) => {
       this.shownAt.push(performance.now());
       if (this.shownAt.length > 200) this.shownAt.splice(0, 100);
-      card.classList.remove("no-picture");
+      if (card.classList.contains("no-picture")) card.classList.remove("no-picture");
       if (String(header.size) !== size) {
         size = String(header.size);
         onSize();

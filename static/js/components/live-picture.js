@@ -51,14 +51,21 @@ async function maskTint(base64) {
   return tint;
 }
 
+/* A ResizeObserver entry's size in device pixels: [width, height]. */
+function devicePixels(entry) {
+  const box = entry.devicePixelContentBoxSize?.[0];
+  if (box) return [box.inlineSize, box.blockSize];
+  const ratio = window.devicePixelRatio || 1;
+  return [Math.round(entry.contentRect.width * ratio), Math.round(entry.contentRect.height * ratio)];
+}
+
 function label(detection) {
   if (detection.track_id === null || detection.track_id === undefined) return "";
   return `#${detection.track_id} ${Math.round(detection.speed_px_s)} px/s`;
 }
 
 export class LivePicture {
-  /* canvas: where frames are drawn; onFrame(header): as each frame is shown, just before
-     it is drawn. */
+  /* canvas: where frames are drawn; onFrame(header): after each frame is drawn. */
   constructor(canvas, onFrame = () => {}) {
     this.canvas = canvas;
     this.context = canvas.getContext("2d");
@@ -67,7 +74,18 @@ export class LivePicture {
     this.decoding = false;
     this.frame = null;    // the frame shown: {header, bitmap, tint}
     this.drawn = 0;
-    new ResizeObserver(() => this.draw()).observe(canvas);
+    // The canvas's size in device pixels, as the ResizeObserver last told it: read from
+    // the layout at each frame, it made the page lay out again at each frame.
+    this.pixels = [0, 0];
+    const sizes = new ResizeObserver(([entry]) => {
+      this.pixels = devicePixels(entry);
+      this.draw();
+    });
+    try {
+      sizes.observe(canvas, { box: "device-pixel-content-box" });  // a new screen's ratio too
+    } catch (_) {
+      sizes.observe(canvas);  // a browser without that box
+    }
   }
 
   /* The frame's size ([width, height] of the camera's picture) once one has come. */
@@ -103,14 +121,12 @@ export class LivePicture {
     const before = this.frame;
     this.frame = frame;
     if (before) before.bitmap.close();
-    // First the card's say (a card hides its canvas until the first frame): drawn on a
-    // hidden canvas, the frame would have no size until the next layout redrew it.
-    this.onFrame(frame.header);
     this.draw();
     this.drawn += 1;
     this.canvas.dataset.frame = frame.header.frame;
     this.canvas.dataset.drawn = this.drawn;
     this.canvas.liveHeader = frame.header;  // What is drawn, for a test or the console to read.
+    this.onFrame(frame.header);
   }
 
   /* No picture until the next frame. */
@@ -131,8 +147,7 @@ export class LivePicture {
   draw() {
     const { canvas, context, frame } = this;
     const ratio = window.devicePixelRatio || 1;
-    const width = Math.round(canvas.clientWidth * ratio);
-    const height = Math.round(canvas.clientHeight * ratio);
+    const [width, height] = this.pixels;
     if (canvas.width !== width || canvas.height !== height) {
       canvas.width = width;
       canvas.height = height;

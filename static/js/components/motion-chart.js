@@ -13,6 +13,13 @@ export class MotionChart {
     this.alarmTimes = alarmTimes;
     this.points = [];  // {t, v}: the motion share (0..1) at each status, oldest first
     this.plot = null;  // made at the first drawing
+    // Drawn only while on screen (not on the wall, not scrolled away), and again as it comes
+    // back: a page of many cameras gets a status a second from each.
+    this.onScreen = false;
+    new IntersectionObserver(([entry]) => {
+      this.onScreen = entry.isIntersecting;
+      if (this.onScreen) this.draw(Date.now() / 1000);
+    }).observe(element);
   }
 
   record(ts, value) {
@@ -22,6 +29,7 @@ export class MotionChart {
   }
 
   draw(now) {
+    if (!this.onScreen) return;
     const plot = this.ensurePlot();
     if (!plot) return;
     const shown = this.points.filter((p) => p.t >= now - WINDOW_S);

@@ -159,6 +159,33 @@ def test_alarm_toasts_are_capped_and_repeats_of_an_event_merge(
     assert page.locator("#toasts-more").is_hidden()
 
 
+# The card's flash: how far into it the card is (ms), or null when it is not flashing.
+FLASHING = """id => {
+  const card = document.querySelector(`.card[data-id="${id}"]`);
+  const flash = card.getAnimations().find(a => a.animationName === 'flash');
+  return flash && card.classList.contains('flash') ? flash.currentTime : null;
+}"""
+
+
+def test_a_card_flashes_at_each_alarm_and_an_alarm_during_the_flash_starts_it_again(
+    serve: Callable[..., Running], page: Any, motion_video: Path
+) -> None:
+    server = serve()
+    cam = add_camera(server.base, f"file://{motion_video}", name="lane")
+    page.goto(server.base + "/")
+    page.wait_for_selector("#ws-state.badge-live", timeout=10000)
+    assert page.evaluate(FLASHING, cam) is None
+    publish(server, alarm(cam, 1, time.time(), name="lane"))
+    page.wait_for_function(f"() => ({FLASHING})({cam}) !== null")
+    page.wait_for_function(f"() => ({FLASHING})({cam}) > 700")
+    publish(server, alarm(cam, 1, time.time(), name="lane"))  # The same event's next alarm.
+    page.wait_for_function(f"() => ({FLASHING})({cam}) < 500")
+    # It ends (1.2 s), and the next event's alarm flashes the card again.
+    page.wait_for_function(f"() => ({FLASHING})({cam}) === null", timeout=5000)
+    publish(server, alarm(cam, 2, time.time(), name="lane"))
+    page.wait_for_function(f"() => ({FLASHING})({cam}) !== null")
+
+
 def test_sound_waits_for_a_click_and_says_so(serve: Callable[..., Running], page: Any) -> None:
     server = serve()
     page.add_init_script(

@@ -5,10 +5,13 @@
 N cameras (default 16) in a real ``vigil serve`` with two camera processes, each playing
 the Chromium wall test's clip (``tests/api/vigil_livekit.write_video``: 320x240 at 15
 fps, a square crossing it every 3 s), activated; Chromium at 1280x800 shows them on
-``/#wall``. Once every camera keeps its rate, for R rounds (default 3) of S seconds
-(default 8) it counts the frames each camera's canvas drew, and the CPU of each process
-that does the work: Chromium's by kind (its renderer, GPU, browser and utility
-processes), the server, its camera processes. It prints each round and the medians.
+``/#wall``. The server runs as ``bench_cameras.py``'s (``_served.Server``: a status
+every 0.5 s, no clips), not with the test's settings (a status every 0.25 s), so its
+page gets fewer /ws messages than the test's. Once every camera keeps its rate, for R
+rounds (default 3) of S seconds (default 8) it counts the frames each camera's canvas
+drew, and the CPU of each process that does the work: Chromium's by kind (its renderer,
+GPU, browser and utility processes), Playwright's driver, the server, its camera
+processes (and their forkserver). It prints each round and the medians.
 
 A profile, not a benchmark: it shows where the machine goes while the wall test runs,
 to tell a page's change from the moment's noise (run it on both revisions, in turn).
@@ -34,7 +37,7 @@ from _served import REPO, Server, cpu_seconds, descendants
 from playwright.sync_api import sync_playwright
 
 sys.path.insert(0, str(REPO))
-from tests.api.vigil_livekit import write_video  # the test's own clip
+from tests.api.vigil_livekit import wait_for, write_video  # the test's own clip
 
 CAMERA_FPS = 14  # The clip's 15 fps, read back by the camera's own count.
 DRAWN = (
@@ -91,20 +94,18 @@ def main() -> None:
             page = browser.new_page(viewport={"width": 1280, "height": 800})
             page.goto(server.base + "/#wall")
             page.wait_for_function(f"() => ({DRAWN})().filter(n => n > 0).length === {len(ids)}")
-            deadline = time.monotonic() + 60
-            while min(c["fps"] for c in server.client.get("/api/cameras").json()) < CAMERA_FPS:
-                if time.monotonic() > deadline:
-                    raise SystemExit("the cameras did not reach their rate")
-                time.sleep(0.5)
+            cameras = server.client.get
+            wait_for(
+                lambda: min(c["fps"] for c in cameras("/api/cameras").json()) >= CAMERA_FPS,
+                60,
+                "every camera at its rate",
+            )
             rounds: list[tuple[list[float], dict[str, float]]] = []
             for _ in range(args.rounds):
                 drawn0, cpu0, t0 = page.evaluate(DRAWN), cpu_by_role(server), time.monotonic()
                 page.wait_for_timeout(args.seconds * 1000)
-                drawn1, cpu1, took = (
-                    page.evaluate(DRAWN),
-                    cpu_by_role(server),
-                    time.monotonic() - t0,
-                )
+                drawn1, cpu1 = page.evaluate(DRAWN), cpu_by_role(server)
+                took = time.monotonic() - t0
                 rates = [(b - a) / took for a, b in zip(drawn0, drawn1, strict=True)]
                 cores = {role: (cpu1[role] - cpu0.get(role, 0.0)) / took for role in cpu1}
                 rounds.append((rates, cores))

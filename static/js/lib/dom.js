@@ -13,25 +13,34 @@ export function escapeHtml(text) {
    taken off and put back shows the browser no change unless it lays out between): on a
    wall of cameras alarming, those layouts took the page's main thread 2% of its time. */
 export function replayAnimation(element, className) {
-  if (!element.classList.contains(className)) {
-    const ended = (event) => {
-      if (event.target !== element) return;  // a child's animation
-      element.classList.remove(className);
-      element.removeEventListener("animationend", ended);
-      element.removeEventListener("animationcancel", ended);
-    };
-    element.addEventListener("animationend", ended);
-    element.addEventListener("animationcancel", ended);
-    element.classList.add(className);
-    return;
-  }
-  const running = element.getAnimations().filter((animation) => animation instanceof CSSAnimation);
+  const on = element.classList.contains(className);
+  const running = on ? element.getAnimations().filter((a) => a instanceof CSSAnimation) : [];
   if (running.length) {
     for (const animation of running) animation.currentTime = 0;
     return;
   }
-  // The class is on, its animation never ran (the element was not shown): again, with a
-  // frame's style in between.
+  takeOffAtEnd(element, className);
+  if (!on) {
+    element.classList.add(className);
+    return;
+  }
+  // On, but its animation never ran (the element was not shown): again, with a frame's
+  // style in between.
   element.classList.remove(className);
-  requestAnimationFrame(() => replayAnimation(element, className));
+  requestAnimationFrame(() => element.classList.add(className));
+}
+
+const takenOffAtEnd = new WeakMap();  // element -> the classes its animations' ends take off
+
+/* Once per element and class: the class comes off when element's own animation ends. */
+function takeOffAtEnd(element, className) {
+  const classes = takenOffAtEnd.get(element) ?? new Set();
+  if (classes.has(className)) return;
+  classes.add(className);
+  takenOffAtEnd.set(element, classes);
+  const ended = (event) => {
+    if (event.target === element) element.classList.remove(className);  // not a child's
+  };
+  element.addEventListener("animationend", ended);
+  element.addEventListener("animationcancel", ended);
 }
